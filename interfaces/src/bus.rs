@@ -1,0 +1,702 @@
+//! The typed bus over zenoh: publishers, subscribers, services, liveliness.
+//!
+//! A [`Bus`] is one component's zenoh session, bound to a namespace. Everything it declares is
+//! typed by the [`Topic`] or [`Service`] constant it is given, and announced by a liveliness token
+//! (see [`crate::liveliness`]).
+//!
+//! - Payloads are CDR ([`crate::codec`]); each sample's encoding is `application/cdr` with the
+//!   message's type name as schema, so any tool can decode it by name.
+//! - Payloads from [`SHM_THRESHOLD`] bytes up (camera frames) are written once, straight into a
+//!   zenoh shared-memory buffer; a subscriber on the same host reads them without a copy through
+//!   the network stack.
+//! - A payload that does not decode as the topic's type is counted (per topic, in the bus'
+//!   [`Counters`], published on `diagnostics`) and logged at most once a second per topic; the
+//!   subscriber carries on.
+//! - Service calls carry a time-out; a handler's error travels back typed ([`ServiceError`]).
+
+use crate::args::ConnectArgs;
+use crate::codec::{self, CodecError};
+use crate::header::Clock;
+use crate::liveliness::{self, Token};
+use crate::msg::Message;
+use crate::ratelimit::RateLimiter;
+use crate::topic::{self, Service, Topic};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+use zenoh::bytes::Encoding;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::Sample;
+use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
+
+/// Payloads of this many bytes or more go through shared memory when it is enabled.
+pub const SHM_THRESHOLD: usize = 64 * 1024;
+/// Size of each process' shared-memory pool: room for a dozen RGB-D frames in flight.
+pub const SHM_POOL_BYTES: usize = 32 * 1024 * 1024;
+/// Default depth of a subscriber's queue; a full queue blocks the sender (no silent loss).
+pub const DEFAULT_QUEUE: usize = 256;
+
+/// Errors of the bus.
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    #[error("invalid name {0:?}: use letters, digits, '_', '-' (and '/' inside topic names)")]
+    InvalidName(String),
+    #[error("bad zenoh configuration: {0}")]
+    Config(String),
+    #[error(
+        "cannot join the bus at {endpoints}: {reason}\n  (is `robocog launch` running? pass --connect <endpoint> or set ROBOCOG_CONNECT)"
+    )]
+    Connect { endpoints: String, reason: String },
+    #[error("zenoh error while {what}: {reason}")]
+    Zenoh { what: String, reason: String },
+    #[error(transparent)]
+    Codec(#[from] CodecError),
+    #[error("the subscription to {0} is closed")]
+    Closed(String),
+}
+
+fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> BusError {
+    let what = what.into();
+    move |e| BusError::Zenoh {
+        what,
+        reason: e.to_string(),
+    }
+}
+
+/// Named counters of a component: decode failures, drops, fallbacks. Published on `diagnostics`.
+#[derive(Debug, Default)]
+pub struct Counters {
+    map: Mutex<BTreeMap<String, Arc<AtomicU64>>>,
+}
+
+impl Counters {
+    /// The counter `name`, created at 0 when new.
+    pub fn counter(&self, name: &str) -> Arc<AtomicU64> {
+        let mut map = self.map.lock().unwrap_or_else(|p| p.into_inner());
+        map.entry(name.to_string()).or_default().clone()
+    }
+    /// Add one to counter `name`.
+    pub fn incr(&self, name: &str) {
+        self.counter(name).fetch_add(1, Ordering::Relaxed);
+    }
+    /// Every counter and its value, sorted by name.
+    pub fn snapshot(&self) -> Vec<(String, u64)> {
+        let map = self.map.lock().unwrap_or_else(|p| p.into_inner());
+        map.iter()
+            .map(|(k, v)| (k.clone(), v.load(Ordering::Relaxed)))
+            .collect()
+    }
+}
+
+struct Inner {
+    session: zenoh::Session,
+    namespace: String,
+    component: String,
+    host: String,
+    clock: Clock,
+    counters: Arc<Counters>,
+    shm_enabled: bool,
+    shm: OnceLock<Option<Arc<ShmProvider<PosixShmProviderBackend>>>>,
+    _token: Option<LivelinessToken>,
+}
+
+/// One process' connection to the bus (cheap to clone).
+#[derive(Clone)]
+pub struct Bus {
+    inner: Arc<Inner>,
+}
+
+impl std::fmt::Debug for Bus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bus")
+            .field("namespace", &self.inner.namespace)
+            .field("component", &self.inner.component)
+            .finish()
+    }
+}
+
+/// How a [`Bus`] opens.
+#[derive(Debug, Clone, Default)]
+pub struct BusOptions {
+    /// Declare the component's liveliness token (components do; command-line tools do not, so
+    /// they never show up in `robocog component list`).
+    pub announce: bool,
+    pub clock: Clock,
+}
+
+impl Bus {
+    /// Join the bus as component `component` (its liveliness token is declared).
+    pub async fn open(args: &ConnectArgs, component: &str) -> Result<Bus, BusError> {
+        Self::open_with(
+            args,
+            component,
+            BusOptions {
+                announce: true,
+                clock: Clock::System,
+            },
+        )
+        .await
+    }
+
+    /// Join the bus with explicit options.
+    pub async fn open_with(
+        args: &ConnectArgs,
+        component: &str,
+        options: BusOptions,
+    ) -> Result<Bus, BusError> {
+        if !topic::is_valid_segment(&args.namespace) {
+            return Err(BusError::InvalidName(args.namespace.clone()));
+        }
+        if !topic::is_valid_segment(component) {
+            return Err(BusError::InvalidName(component.to_string()));
+        }
+        let config = args.zenoh_config()?;
+        let session = zenoh::open(config).await.map_err(|e| BusError::Connect {
+            endpoints: args.endpoints().join(","),
+            reason: e.to_string(),
+        })?;
+        let host = gethostname::gethostname()
+            .to_string_lossy()
+            .replace(['/', '*', '$', '?', '#'], "_");
+        let token = if options.announce {
+            let since_ms = crate::header::system_now_ns() / 1_000_000;
+            let key = liveliness::component_key(
+                &args.namespace,
+                component,
+                &host,
+                std::process::id(),
+                since_ms,
+            );
+            Some(
+                session
+                    .liveliness()
+                    .declare_token(key)
+                    .await
+                    .map_err(zerr("declaring the component's liveliness token"))?,
+            )
+        } else {
+            None
+        };
+        Ok(Bus {
+            inner: Arc::new(Inner {
+                session,
+                namespace: args.namespace.clone(),
+                component: component.to_string(),
+                host,
+                clock: options.clock,
+                counters: Arc::new(Counters::default()),
+                shm_enabled: !args.no_shm,
+                shm: OnceLock::new(),
+                _token: token,
+            }),
+        })
+    }
+
+    pub fn namespace(&self) -> &str {
+        &self.inner.namespace
+    }
+    pub fn component(&self) -> &str {
+        &self.inner.component
+    }
+    pub fn host(&self) -> &str {
+        &self.inner.host
+    }
+    pub fn clock(&self) -> &Clock {
+        &self.inner.clock
+    }
+    pub fn counters(&self) -> &Arc<Counters> {
+        &self.inner.counters
+    }
+    /// The underlying zenoh session, for what the typed API does not cover (benchmarks, tools).
+    pub fn session(&self) -> &zenoh::Session {
+        &self.inner.session
+    }
+    /// The zenoh key of a topic of this namespace.
+    pub fn topic_key(&self, name: &str) -> String {
+        topic::topic_key(&self.inner.namespace, name)
+    }
+
+    fn shm_provider(&self) -> Option<Arc<ShmProvider<PosixShmProviderBackend>>> {
+        if !self.inner.shm_enabled {
+            return None;
+        }
+        self.inner
+            .shm
+            .get_or_init(
+                || match ShmProviderBuilder::default_backend(SHM_POOL_BYTES).wait() {
+                    Ok(p) => Some(Arc::new(p)),
+                    Err(e) => {
+                        tracing::warn!(
+                            "shared memory unavailable, large payloads will be copied: {e}"
+                        );
+                        None
+                    }
+                },
+            )
+            .clone()
+    }
+
+    async fn token(&self, key: String) -> Result<LivelinessToken, BusError> {
+        self.inner
+            .session
+            .liveliness()
+            .declare_token(key)
+            .await
+            .map_err(zerr("declaring a liveliness token"))
+    }
+
+    /// Declare a publisher on `topic`.
+    pub async fn publisher<T: Message>(&self, topic: &Topic<T>) -> Result<Publisher<T>, BusError> {
+        self.publisher_named(topic.name()).await
+    }
+
+    /// Declare a publisher of `T` on a topic name chosen at run time (tools, replay). The name is
+    /// checked; prefer [`Bus::publisher`] with a constant.
+    pub async fn publisher_named<T: Message>(&self, name: &str) -> Result<Publisher<T>, BusError> {
+        if !topic::is_valid_name(name) {
+            return Err(BusError::InvalidName(name.to_string()));
+        }
+        let key = self.topic_key(name);
+        let inner = self
+            .inner
+            .session
+            .declare_publisher(key)
+            .encoding(Encoding::APPLICATION_CDR.with_schema(T::TYPE_NAME))
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(zerr(format!("declaring a publisher on {name}")))?;
+        let token = self
+            .token(liveliness::publisher_key(
+                self.namespace(),
+                self.component(),
+                T::TYPE_NAME,
+                name,
+            ))
+            .await?;
+        let shm = self.shm_provider();
+        Ok(Publisher {
+            inner,
+            seq: AtomicU64::new(0),
+            clock: self.inner.clock.clone(),
+            shm,
+            shm_fallbacks: self.inner.counters.counter(&format!("shm_fallback/{name}")),
+            _token: token,
+            _type: PhantomData,
+        })
+    }
+
+    /// Subscribe to `topic` with the default queue depth.
+    pub async fn subscriber<T: Message>(
+        &self,
+        topic: &Topic<T>,
+    ) -> Result<Subscriber<T>, BusError> {
+        self.subscriber_named(topic.name(), DEFAULT_QUEUE).await
+    }
+
+    /// Subscribe to a topic name chosen at run time, with a queue of `queue` samples.
+    pub async fn subscriber_named<T: Message>(
+        &self,
+        name: &str,
+        queue: usize,
+    ) -> Result<Subscriber<T>, BusError> {
+        if !topic::is_valid_name(name) {
+            return Err(BusError::InvalidName(name.to_string()));
+        }
+        let key = self.topic_key(name);
+        let inner = self
+            .inner
+            .session
+            .declare_subscriber(key)
+            .with(zenoh::handlers::FifoChannel::new(queue.max(1)))
+            .await
+            .map_err(zerr(format!("subscribing to {name}")))?;
+        let token = self
+            .token(liveliness::subscriber_key(
+                self.namespace(),
+                self.component(),
+                T::TYPE_NAME,
+                name,
+            ))
+            .await?;
+        Ok(Subscriber {
+            inner,
+            topic: name.to_string(),
+            decode_errors: self
+                .inner
+                .counters
+                .counter(&format!("decode_errors/{name}")),
+            limiter: Mutex::new(RateLimiter::new(Duration::from_secs(1))),
+            _token: token,
+            _type: PhantomData,
+        })
+    }
+
+    /// Serve `service`: every request is decoded and handed to `handler`, whose result (or typed
+    /// error) goes back to the caller. A request that does not decode gets a `BadRequest` reply.
+    pub async fn serve<Req, Rep, F, Fut>(
+        &self,
+        service: &Service<Req, Rep>,
+        handler: F,
+    ) -> Result<ServiceHandle, BusError>
+    where
+        Req: Message,
+        Rep: Message,
+        F: Fn(Req) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<Rep, ServiceError>> + Send + 'static,
+    {
+        let name = service.name();
+        let key = topic::service_key(self.namespace(), name);
+        let queryable = self
+            .inner
+            .session
+            .declare_queryable(key)
+            .with(zenoh::handlers::FifoChannel::new(DEFAULT_QUEUE))
+            .await
+            .map_err(zerr(format!("serving {name}")))?;
+        let token = self
+            .token(liveliness::service_key(
+                self.namespace(),
+                self.component(),
+                Req::TYPE_NAME,
+                Rep::TYPE_NAME,
+                name,
+            ))
+            .await?;
+        let handler = Arc::new(handler);
+        let bad_requests = self.inner.counters.counter(&format!("bad_requests/{name}"));
+        let task = tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                let handler = handler.clone();
+                let bad_requests = bad_requests.clone();
+                tokio::spawn(async move {
+                    let request = match query.payload() {
+                        Some(p) => codec::decode::<Req>(&p.to_bytes(), Req::TYPE_NAME)
+                            .map_err(|e| ServiceError::bad_request(e.to_string())),
+                        None => Err(ServiceError::bad_request("the request has no payload")),
+                    };
+                    let reply: WireReply<Rep> = match request {
+                        Ok(req) => handler(req).await.into(),
+                        Err(e) => {
+                            bad_requests.fetch_add(1, Ordering::Relaxed);
+                            Err::<Rep, _>(e).into()
+                        }
+                    };
+                    match codec::encode(&reply, Rep::TYPE_NAME) {
+                        Ok(bytes) => {
+                            let key = query.key_expr().clone();
+                            if let Err(e) = query.reply(key, bytes).await {
+                                tracing::warn!("could not send a reply: {e}");
+                            }
+                        }
+                        Err(e) => tracing::error!("could not encode a reply: {e}"),
+                    }
+                });
+            }
+        });
+        Ok(ServiceHandle {
+            task,
+            _token: token,
+        })
+    }
+
+    /// Call `service` with `request`, waiting at most `timeout` for the reply.
+    pub async fn call<Req: Message, Rep: Message>(
+        &self,
+        service: &Service<Req, Rep>,
+        request: &Req,
+        timeout: Duration,
+    ) -> Result<Rep, CallError> {
+        let name = service.name();
+        let bytes = codec::encode(request, Req::TYPE_NAME).map_err(CallError::Codec)?;
+        let started = Instant::now();
+        let replies = self
+            .inner
+            .session
+            .get(topic::service_key(self.namespace(), name))
+            .payload(bytes)
+            .encoding(Encoding::APPLICATION_CDR.with_schema(Req::TYPE_NAME))
+            .timeout(timeout)
+            .await
+            .map_err(|e| CallError::Zenoh(e.to_string()))?;
+        let first =
+            tokio::time::timeout(timeout + Duration::from_millis(200), replies.recv_async()).await;
+        match first {
+            Ok(Ok(reply)) => match reply.into_result() {
+                Ok(sample) => {
+                    let wire: WireReply<Rep> =
+                        codec::decode(&sample.payload().to_bytes(), Rep::TYPE_NAME)
+                            .map_err(CallError::Codec)?;
+                    match wire {
+                        WireReply::Ok(rep) => Ok(rep),
+                        WireReply::Err(e) => Err(CallError::Remote(e)),
+                    }
+                }
+                Err(e) => Err(CallError::Zenoh(format!("{:?}", e.payload().to_bytes()))),
+            },
+            // The reply channel closed with nothing in it: before the time-out, nobody serves
+            // the service; at the time-out, somebody did not answer in time.
+            Ok(Err(_)) if started.elapsed() + Duration::from_millis(20) < timeout => {
+                Err(CallError::NoServer(name.to_string()))
+            }
+            Ok(Err(_)) | Err(_) => Err(CallError::Timeout {
+                service: name.to_string(),
+                timeout,
+            }),
+        }
+    }
+
+    /// Every liveliness token of this namespace now: the live graph.
+    pub async fn graph(&self, wait: Duration) -> Result<Vec<Token>, BusError> {
+        let replies = self
+            .inner
+            .session
+            .liveliness()
+            .get(liveliness::all(self.namespace()))
+            .timeout(wait)
+            .await
+            .map_err(zerr("querying liveliness"))?;
+        let mut tokens = Vec::new();
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result()
+                && let Some(t) = liveliness::parse(self.namespace(), sample.key_expr().as_str())
+            {
+                tokens.push(t);
+            }
+        }
+        Ok(tokens)
+    }
+}
+
+/// A typed publisher. Dropping it withdraws its liveliness token.
+pub struct Publisher<T: Message> {
+    inner: zenoh::pubsub::Publisher<'static>,
+    seq: AtomicU64,
+    clock: Clock,
+    shm: Option<Arc<ShmProvider<PosixShmProviderBackend>>>,
+    shm_fallbacks: Arc<AtomicU64>,
+    _token: LivelinessToken,
+    _type: PhantomData<fn(T)>,
+}
+
+impl<T: Message> std::fmt::Debug for Publisher<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Publisher<{}>({})", T::TYPE_NAME, self.inner.key_expr())
+    }
+}
+
+impl<T: Message> Publisher<T> {
+    /// Stamp `msg` (sequence number always; time when its stamp is 0) and publish it.
+    pub async fn publish(&self, msg: &mut T) -> Result<(), BusError> {
+        let header = msg.header_mut();
+        header.seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        if header.stamp_ns == 0 {
+            header.stamp_ns = self.clock.now_ns();
+        }
+        self.put(msg).await
+    }
+
+    /// Publish `msg` as it is, header untouched (replay, relays).
+    pub async fn put(&self, msg: &T) -> Result<(), BusError> {
+        let len = codec::encoded_len(msg);
+        if len >= SHM_THRESHOLD
+            && let Some(shm) = &self.shm
+        {
+            match shm.alloc(len).with_policy::<GarbageCollect>().wait() {
+                Ok(mut buf) => {
+                    codec::encode_into(msg, &mut buf[..len], T::TYPE_NAME)?;
+                    return self.inner.put(buf).await.map_err(zerr("publishing"));
+                }
+                Err(e) => {
+                    self.shm_fallbacks.fetch_add(1, Ordering::Relaxed);
+                    tracing::debug!("shared memory pool full ({e:?}), copying this payload");
+                }
+            }
+        }
+        let bytes = codec::encode(msg, T::TYPE_NAME)?;
+        self.inner.put(bytes).await.map_err(zerr("publishing"))
+    }
+
+    /// Publish already-encoded CDR bytes (the topic tools and replay, which hold payloads).
+    pub async fn put_encoded(&self, bytes: Vec<u8>) -> Result<(), BusError> {
+        self.inner.put(bytes).await.map_err(zerr("publishing"))
+    }
+}
+
+/// A typed subscription. Undecodable payloads are counted and skipped.
+pub struct Subscriber<T: Message> {
+    inner: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
+    topic: String,
+    decode_errors: Arc<AtomicU64>,
+    limiter: Mutex<RateLimiter>,
+    _token: LivelinessToken,
+    _type: PhantomData<fn() -> T>,
+}
+
+impl<T: Message> std::fmt::Debug for Subscriber<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Subscriber<{}>({})", T::TYPE_NAME, self.topic)
+    }
+}
+
+impl<T: Message> Subscriber<T> {
+    /// The next message that decodes; `Err` only when the subscription is closed.
+    pub async fn recv(&self) -> Result<T, BusError> {
+        loop {
+            let sample = self
+                .inner
+                .recv_async()
+                .await
+                .map_err(|_| BusError::Closed(self.topic.clone()))?;
+            if let Some(msg) = self.decode(&sample) {
+                return Ok(msg);
+            }
+        }
+    }
+
+    /// The next message, or `None` after `timeout`.
+    pub async fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, BusError> {
+        match tokio::time::timeout(timeout, self.recv()).await {
+            Ok(r) => r.map(Some),
+            Err(_) => Ok(None),
+        }
+    }
+
+    /// A message already queued, if any (never waits).
+    pub fn try_recv(&self) -> Option<T> {
+        while let Ok(Some(sample)) = self.inner.try_recv() {
+            if let Some(msg) = self.decode(&sample) {
+                return Some(msg);
+            }
+        }
+        None
+    }
+
+    /// The newest queued message, dropping older ones (for latest-value consumers such as a
+    /// controller reading joint states).
+    pub fn latest(&self) -> Option<T> {
+        let mut last = None;
+        while let Some(m) = self.try_recv() {
+            last = Some(m);
+        }
+        last
+    }
+
+    /// How many payloads on this topic failed to decode so far.
+    pub fn decode_errors(&self) -> u64 {
+        self.decode_errors.load(Ordering::Relaxed)
+    }
+
+    fn decode(&self, sample: &Sample) -> Option<T> {
+        match codec::decode::<T>(&sample.payload().to_bytes(), T::TYPE_NAME) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                let n = self.decode_errors.fetch_add(1, Ordering::Relaxed) + 1;
+                let mut limiter = self.limiter.lock().unwrap_or_else(|p| p.into_inner());
+                if let Some(suppressed) = limiter.allow(Instant::now()) {
+                    tracing::warn!(
+                        topic = %self.topic,
+                        total = n,
+                        suppressed,
+                        "dropped a payload that is not a {}: {e}",
+                        T::TYPE_NAME
+                    );
+                }
+                None
+            }
+        }
+    }
+}
+
+/// A served service; dropping it stops serving.
+pub struct ServiceHandle {
+    task: tokio::task::JoinHandle<()>,
+    _token: LivelinessToken,
+}
+
+impl std::fmt::Debug for ServiceHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ServiceHandle")
+    }
+}
+
+impl Drop for ServiceHandle {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// Why a service refused or failed a request; travels back to the caller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, thiserror::Error)]
+#[error("{code:?}: {message}")]
+pub struct ServiceError {
+    pub code: ErrorCode,
+    pub message: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ErrorCode {
+    /// The request is malformed or its values are invalid.
+    BadRequest,
+    /// It names something that does not exist (a frame, a joint, a node).
+    NotFound,
+    /// Valid, but refused (a limit, a rule, an owner).
+    Refused,
+    /// The server failed.
+    Internal,
+}
+
+impl ServiceError {
+    pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {
+        Self {
+            code,
+            message: message.into(),
+        }
+    }
+    pub fn bad_request(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::BadRequest, message)
+    }
+    pub fn not_found(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::NotFound, message)
+    }
+    pub fn refused(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::Refused, message)
+    }
+}
+
+/// A reply on the wire: the value or the error.
+#[derive(Debug, Serialize, Deserialize)]
+enum WireReply<T> {
+    Ok(T),
+    Err(ServiceError),
+}
+
+impl<T> From<Result<T, ServiceError>> for WireReply<T> {
+    fn from(r: Result<T, ServiceError>) -> Self {
+        match r {
+            Ok(v) => WireReply::Ok(v),
+            Err(e) => WireReply::Err(e),
+        }
+    }
+}
+
+/// Why a call failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CallError {
+    #[error("no component serves {0} in this namespace")]
+    NoServer(String),
+    #[error("{service} did not answer within {timeout:?}")]
+    Timeout { service: String, timeout: Duration },
+    #[error("the service answered with an error: {0}")]
+    Remote(ServiceError),
+    #[error(transparent)]
+    Codec(CodecError),
+    #[error("zenoh error: {0}")]
+    Zenoh(String),
+}

@@ -1,0 +1,36 @@
+//! # interfaces: the typed bus of robocog
+//!
+//! Every message a robocog component sends is a Rust type defined here ([`msg`]); every topic and
+//! service is a typed constant ([`topics`]), so a misspelt topic or a wrong message type is a
+//! compile error. Underneath, [`bus::Bus`] is a zenoh session bound to a namespace:
+//!
+//! - **Topics** carry CDR-encoded messages ([`codec`], little-endian with the 4-byte
+//!   encapsulation header, as ROS 2 does) under `robocog/<namespace>/t/<topic>`.
+//! - **Services** are zenoh queryables under `robocog/<namespace>/s/<service>`; calls carry a
+//!   time-out and errors come back typed.
+//! - **Liveliness tokens** announce every component, publisher, subscriber and service with its
+//!   type name ([`liveliness`]), so tools see a running graph with no opt-in.
+//! - **Headers**: every message starts with a [`Header`] (stamp, sequence number, frame), stamped
+//!   from the component's [`Clock`], which a replay can drive.
+//! - **Connection flags**: [`args::ConnectArgs`] is the one set of flags of every binary
+//!   (`--namespace`, `--connect`, `--listen`, `--config`); multicast scouting is off.
+//! - **Components** run through [`node::run`], which wires logging, signals, liveliness and
+//!   diagnostics the same way for all.
+
+pub mod args;
+pub mod bus;
+pub mod codec;
+pub mod header;
+pub mod liveliness;
+pub mod msg;
+pub mod node;
+pub mod ratelimit;
+pub mod topic;
+pub mod topics;
+
+pub use args::ConnectArgs;
+pub use bus::{Bus, BusError, CallError, ErrorCode, Publisher, ServiceError, Subscriber};
+pub use header::{Clock, Header};
+pub use msg::Message;
+pub use node::{Interface, NodeArgs, Shutdown};
+pub use topic::{Service, Topic};

@@ -1,0 +1,155 @@
+//! Liveliness tokens: how a running graph describes itself with no opt-in.
+//!
+//! Every component, publisher, subscriber and service declares a zenoh liveliness token whose key
+//! says what it is. The token vanishes when the process dies (even by SIGKILL: the router notices
+//! the closed session), so `robocog topic list` and `robocog component list` always show the live
+//! graph, and the launcher knows a component is up when its token appears.
+//!
+//! | token | key |
+//! |---|---|
+//! | component | `robocog/<ns>/_live/c/<component>/<host>/<pid>/<since_ms>` |
+//! | publisher | `robocog/<ns>/_live/p/<component>/<type>/<topic>` |
+//! | subscriber | `robocog/<ns>/_live/s/<component>/<type>/<topic>` |
+//! | service | `robocog/<ns>/_live/q/<component>/<request type>/<reply type>/<service>` |
+//!
+//! Topic names may hold `/`, so they come last; the other fields never do.
+
+/// The key expression matching every token of namespace `ns`.
+pub fn all(ns: &str) -> String {
+    format!("robocog/{ns}/_live/**")
+}
+
+/// The key expression matching every component token of namespace `ns`.
+pub fn components(ns: &str) -> String {
+    format!("robocog/{ns}/_live/c/**")
+}
+
+pub fn component_key(ns: &str, component: &str, host: &str, pid: u32, since_ms: i64) -> String {
+    format!("robocog/{ns}/_live/c/{component}/{host}/{pid}/{since_ms}")
+}
+
+pub fn publisher_key(ns: &str, component: &str, type_name: &str, topic: &str) -> String {
+    format!("robocog/{ns}/_live/p/{component}/{type_name}/{topic}")
+}
+
+pub fn subscriber_key(ns: &str, component: &str, type_name: &str, topic: &str) -> String {
+    format!("robocog/{ns}/_live/s/{component}/{type_name}/{topic}")
+}
+
+pub fn service_key(ns: &str, component: &str, req: &str, rep: &str, service: &str) -> String {
+    format!("robocog/{ns}/_live/q/{component}/{req}/{rep}/{service}")
+}
+
+/// A parsed liveliness token.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Token {
+    Component {
+        name: String,
+        host: String,
+        pid: u32,
+        since_ms: i64,
+    },
+    Publisher {
+        component: String,
+        type_name: String,
+        topic: String,
+    },
+    Subscriber {
+        component: String,
+        type_name: String,
+        topic: String,
+    },
+    Service {
+        component: String,
+        request: String,
+        reply: String,
+        service: String,
+    },
+}
+
+/// Parse a token key of namespace `ns`; `None` for anything that is not a well-formed robocog token
+/// (a foreign or older process: ignored, not fatal).
+pub fn parse(ns: &str, key: &str) -> Option<Token> {
+    let rest = key.strip_prefix(&format!("robocog/{ns}/_live/"))?;
+    let (kind, rest) = rest.split_once('/')?;
+    match kind {
+        "c" => {
+            let f: Vec<&str> = rest.split('/').collect();
+            if f.len() != 4 {
+                return None;
+            }
+            Some(Token::Component {
+                name: f[0].to_string(),
+                host: f[1].to_string(),
+                pid: f[2].parse().ok()?,
+                since_ms: f[3].parse().ok()?,
+            })
+        }
+        "p" | "s" => {
+            let f: Vec<&str> = rest.splitn(3, '/').collect();
+            if f.len() != 3 {
+                return None;
+            }
+            let (component, type_name, topic) = (f[0].into(), f[1].into(), f[2].into());
+            Some(if kind == "p" {
+                Token::Publisher {
+                    component,
+                    type_name,
+                    topic,
+                }
+            } else {
+                Token::Subscriber {
+                    component,
+                    type_name,
+                    topic,
+                }
+            })
+        }
+        "q" => {
+            let f: Vec<&str> = rest.splitn(4, '/').collect();
+            if f.len() != 4 {
+                return None;
+            }
+            Some(Token::Service {
+                component: f[0].into(),
+                request: f[1].into(),
+                reply: f[2].into(),
+                service: f[3].into(),
+            })
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_parse_back() {
+        let k = publisher_key("n1", "ball_tracker", "robocog.BallPosition", "vision/ball");
+        assert_eq!(
+            parse("n1", &k),
+            Some(Token::Publisher {
+                component: "ball_tracker".into(),
+                type_name: "robocog.BallPosition".into(),
+                topic: "vision/ball".into()
+            })
+        );
+        let k = component_key("n1", "dr", "host-a", 42, 1700);
+        assert_eq!(
+            parse("n1", &k),
+            Some(Token::Component {
+                name: "dr".into(),
+                host: "host-a".into(),
+                pid: 42,
+                since_ms: 1700
+            })
+        );
+        let k = service_key("n1", "dr", "robocog.A", "robocog.B", "dr/transform");
+        assert!(matches!(parse("n1", &k), Some(Token::Service { .. })));
+        assert_eq!(parse("n2", &k), None, "another namespace is not ours");
+        assert_eq!(parse("n1", "robocog/n1/_live/c/x"), None);
+        assert_eq!(parse("n1", "robocog/n1/_live/z/a/b/c"), None);
+    }
+}

@@ -1,0 +1,242 @@
+//! The component runtime: what every robocog process does the same way.
+//!
+//! [`run`] parses nothing itself; a component's `main.rs` parses its own flags (flattening
+//! [`NodeArgs`]) and hands over. The runtime then:
+//! - prints the component's interface as JSON and exits for `--describe` (what `robocog check`
+//!   reads to match inputs with outputs across a graph);
+//! - sets up logging (`RUST_LOG`, default `info`), with the component's name on every line;
+//! - joins the bus and declares the component's liveliness token;
+//! - publishes the bus counters on `diagnostics` once a second;
+//! - turns SIGTERM and Ctrl-C into a [`Shutdown`] the component's code awaits;
+//! - exits 0 on a clean return, 1 with the error's whole cause chain otherwise.
+
+use crate::args::ConnectArgs;
+use crate::bus::{Bus, BusOptions};
+use crate::header::{Clock, Header};
+use crate::msg::Message;
+use crate::msg::diag::{Counter, Diagnostics};
+use crate::topic::{Service, Topic};
+use serde::{Deserialize, Serialize};
+use std::future::Future;
+use std::process::ExitCode;
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// Flags every component accepts: the connection flags, and `--describe`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct NodeArgs {
+    #[command(flatten)]
+    pub connect: ConnectArgs,
+    /// Print this component's topics and services as JSON and exit.
+    #[arg(long)]
+    pub describe: bool,
+    /// Name of this instance on the bus (default: the component's name). The launcher sets it to
+    /// the manifest's component name.
+    #[arg(long, env = "ROBOCOG_COMPONENT")]
+    pub name: Option<String>,
+}
+
+/// One topic or service end of a component.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Port {
+    pub name: String,
+    pub type_name: String,
+}
+
+/// What a component publishes, subscribes, serves and calls.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Interface {
+    pub component: String,
+    pub publishes: Vec<Port>,
+    pub subscribes: Vec<Port>,
+    pub serves: Vec<Port>,
+    pub calls: Vec<Port>,
+    /// Hardware it claims (`udp:65305`, `serial:/dev/ttyUSB0`, `http:127.0.0.1:8080`).
+    pub hardware: Vec<String>,
+}
+
+impl Interface {
+    pub fn new(component: &str) -> Self {
+        Self {
+            component: component.to_string(),
+            ..Self::default()
+        }
+    }
+    pub fn publishes<T: Message>(mut self, t: &Topic<T>) -> Self {
+        self.publishes.push(Port {
+            name: t.name().into(),
+            type_name: T::TYPE_NAME.into(),
+        });
+        self
+    }
+    pub fn subscribes<T: Message>(mut self, t: &Topic<T>) -> Self {
+        self.subscribes.push(Port {
+            name: t.name().into(),
+            type_name: T::TYPE_NAME.into(),
+        });
+        self
+    }
+    pub fn serves<Q: Message, R: Message>(mut self, s: &Service<Q, R>) -> Self {
+        self.serves.push(Port {
+            name: s.name().into(),
+            type_name: Q::TYPE_NAME.into(),
+        });
+        self
+    }
+    pub fn calls<Q: Message, R: Message>(mut self, s: &Service<Q, R>) -> Self {
+        self.calls.push(Port {
+            name: s.name().into(),
+            type_name: Q::TYPE_NAME.into(),
+        });
+        self
+    }
+}
+
+/// Resolves when the component is asked to stop (SIGTERM, Ctrl-C, or its own request).
+#[derive(Debug, Clone)]
+pub struct Shutdown {
+    rx: watch::Receiver<bool>,
+}
+
+impl Shutdown {
+    /// A shutdown signal and the sender that triggers it (tests, embedding).
+    pub fn new() -> (watch::Sender<bool>, Shutdown) {
+        let (tx, rx) = watch::channel(false);
+        (tx, Shutdown { rx })
+    }
+    /// Wait until asked to stop.
+    pub async fn wait(&mut self) {
+        while !*self.rx.borrow() {
+            if self.rx.changed().await.is_err() {
+                return;
+            }
+        }
+    }
+    pub fn is_requested(&self) -> bool {
+        *self.rx.borrow()
+    }
+}
+
+/// Set up `tracing` from `RUST_LOG` (default `info`), writing to stderr.
+pub fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+}
+
+/// Run a component: see the module doc. `body` gets the bus and the shutdown signal and returns
+/// when the component is done.
+pub fn run<F, Fut>(args: NodeArgs, interface: Interface, body: F) -> ExitCode
+where
+    F: FnOnce(Bus, Shutdown) -> Fut,
+    Fut: Future<Output = anyhow::Result<()>>,
+{
+    if args.describe {
+        match serde_json::to_string_pretty(&interface) {
+            Ok(s) => {
+                println!("{s}");
+                return ExitCode::SUCCESS;
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    init_logging();
+    let name = args
+        .name
+        .clone()
+        .unwrap_or_else(|| interface.component.clone());
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .thread_name(format!("{name}-rt"))
+        .build()
+    {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("{name}: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async move {
+        let bus = Bus::open_with(
+            &args.connect,
+            &name,
+            BusOptions {
+                announce: true,
+                clock: Clock::System,
+            },
+        )
+        .await?;
+        tracing::info!(namespace = bus.namespace(), "{name} is up");
+        let (tx, shutdown) = Shutdown::new();
+        tokio::spawn(async move {
+            wait_for_signal().await;
+            let _ = tx.send(true);
+        });
+        let diag = tokio::spawn(publish_diagnostics(bus.clone()));
+        let result = body(bus, shutdown).await;
+        diag.abort();
+        result
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn wait_for_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = term.recv() => tracing::info!("SIGTERM: stopping"),
+                    _ = tokio::signal::ctrl_c() => tracing::info!("interrupted: stopping"),
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+/// Publish the bus counters on `diagnostics` once a second, for as long as the component runs.
+pub async fn publish_diagnostics(bus: Bus) {
+    let Ok(publisher) = bus.publisher(&crate::topics::DIAGNOSTICS).await else {
+        tracing::warn!("cannot publish diagnostics");
+        return;
+    };
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    loop {
+        tick.tick().await;
+        let mut msg = Diagnostics {
+            header: Header::default(),
+            component: bus.component().to_string(),
+            counters: bus
+                .counters()
+                .snapshot()
+                .into_iter()
+                .map(|(name, value)| Counter { name, value })
+                .collect(),
+        };
+        if publisher.publish(&mut msg).await.is_err() {
+            return;
+        }
+    }
+}
