@@ -438,7 +438,14 @@ impl Bus {
                         WireReply::Err(e) => Err(CallError::Remote(e)),
                     }
                 }
-                Err(e) => Err(CallError::Zenoh(format!("{:?}", e.payload().to_bytes()))),
+                Err(e) => {
+                    let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
+                    if why.eq_ignore_ascii_case("timeout") {
+                        Err(CallError::Timeout { service: name.to_string(), timeout })
+                    } else {
+                        Err(CallError::Zenoh(why))
+                    }
+                }
             },
             // The reply channel closed with nothing in it: before the time-out, nobody serves
             // the service; at the time-out, somebody did not answer in time.

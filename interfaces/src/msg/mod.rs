@@ -11,7 +11,9 @@
 //! puts it in [`REGISTRY`].
 
 pub mod diag;
+pub mod dr;
 pub mod std_msgs;
+pub mod vision;
 
 use crate::codec::{self, CodecError};
 use crate::header::Header;
@@ -106,6 +108,24 @@ messages! {
     std_msgs::Ping => "robocog.Ping",
     std_msgs::Counter64 => "robocog.Counter64",
     diag::Diagnostics => "robocog.Diagnostics",
+    vision::RgbdFrame => "robocog.RgbdFrame",
+    dr::GetNodeRequest => "robocog.dr.GetNodeRequest",
+    dr::NodeInfo => "robocog.dr.NodeInfo",
+    dr::TransformRequest => "robocog.dr.TransformRequest",
+    dr::TransformReply => "robocog.dr.TransformReply",
+    dr::UpdateRequest => "robocog.dr.UpdateRequest",
+    dr::UpdateReply => "robocog.dr.UpdateReply",
+    dr::ProposeRequest => "robocog.dr.ProposeRequest",
+    dr::ProposeReply => "robocog.dr.ProposeReply",
+    dr::PredicateRequest => "robocog.dr.PredicateRequest",
+    dr::PredicateReply => "robocog.dr.PredicateReply",
+    dr::ForkRequest => "robocog.dr.ForkRequest",
+    dr::ForkReply => "robocog.dr.ForkReply",
+    dr::PddlRequest => "robocog.dr.PddlRequest",
+    dr::PddlReply => "robocog.dr.PddlReply",
+    dr::SnapshotRequest => "robocog.dr.SnapshotRequest",
+    dr::SnapshotData => "robocog.dr.SnapshotData",
+    dr::DrChange => "robocog.dr.DrChange",
 }
 
 #[cfg(test)]

@@ -1,0 +1,155 @@
+//! Bus-facing data types: plain serde structs, meant to move into `interfaces` later.
+//!
+//! Units: revolute joints in rad, rad/s, rad/s², effort in N·m; prismatic joints in m, m/s, m/s²,
+//! effort in N. Times are seconds on the caller's clock (`now_s`), never read from the wall clock
+//! inside this crate's algorithms.
+
+use serde::{Deserialize, Serialize};
+
+/// Whether a joint turns or slides: fixes the units of its position (rad or m).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointKind {
+    /// Positions in rad, velocities in rad/s.
+    Revolute,
+    /// Positions in m, velocities in m/s.
+    Prismatic,
+}
+
+/// One joint as the drivers know it (filled from the URDF by the component).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    /// Unique joint name, as in the URDF.
+    pub name: String,
+    pub kind: JointKind,
+    /// Lowest allowed position (rad or m).
+    pub lower: f64,
+    /// Highest allowed position (rad or m).
+    pub upper: f64,
+    /// Largest allowed speed magnitude (rad/s or m/s), > 0.
+    pub max_velocity: f64,
+    /// Largest allowed acceleration magnitude (rad/s² or m/s²), > 0.
+    pub max_acceleration: f64,
+}
+
+impl JointSpec {
+    /// A revolute joint spec (rad, rad/s, rad/s²).
+    pub fn revolute(
+        name: &str,
+        lower_rad: f64,
+        upper_rad: f64,
+        max_vel: f64,
+        max_acc: f64,
+    ) -> Self {
+        Self {
+            name: name.to_owned(),
+            kind: JointKind::Revolute,
+            lower: lower_rad,
+            upper: upper_rad,
+            max_velocity: max_vel,
+            max_acceleration: max_acc,
+        }
+    }
+
+    /// A prismatic joint spec (m, m/s, m/s²).
+    pub fn prismatic(name: &str, lower_m: f64, upper_m: f64, max_vel: f64, max_acc: f64) -> Self {
+        Self {
+            kind: JointKind::Prismatic,
+            ..Self::revolute(name, lower_m, upper_m, max_vel, max_acc)
+        }
+    }
+}
+
+/// What one joint is asked to do.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "mode")]
+pub enum JointCommand {
+    /// Go to `position` (rad or m) moving no faster than `max_speed` (rad/s or m/s, > 0 and at most
+    /// the joint's `max_velocity`), then hold it.
+    Position { position: f64, max_speed: f64 },
+    /// Move at `velocity` (rad/s or m/s, |velocity| ≤ the joint's `max_velocity`) until another
+    /// goal; the joint still stops at its position limits.
+    Velocity { velocity: f64 },
+}
+
+/// One joint's target inside a [`JointGoal`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointTarget {
+    pub joint: String,
+    pub command: JointCommand,
+}
+
+/// A goal from one client for some joints (topic `joint_motor/goal`).
+///
+/// Accepted or refused as a whole: if any joint is unknown, out of limits or owned by another
+/// client of equal or higher priority, nothing moves (see the crate docs for ownership).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointGoal {
+    /// Who sends it (e.g. the component name); owns the named joints once accepted.
+    pub client: String,
+    /// Higher wins: a goal may take joints from a live owner only with a strictly higher priority.
+    #[serde(default)]
+    pub priority: u8,
+    pub targets: Vec<JointTarget>,
+}
+
+/// A client gives joints back (topic `joint_motor/release`). Empty `joints` = all it owns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointRelease {
+    pub client: String,
+    #[serde(default)]
+    pub joints: Vec<String>,
+}
+
+/// One joint's measured state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointState {
+    pub name: String,
+    /// rad or m.
+    pub position: f64,
+    /// rad/s or m/s.
+    pub velocity: f64,
+    /// N·m or N, when the driver measures it.
+    pub effort: Option<f64>,
+    /// The client that owns the joint now (live lease), if any.
+    pub owner: Option<String>,
+}
+
+/// All joints at one instant (topic `joint_motor/states`, published at 100 Hz or more).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointStates {
+    /// Time of the measurement on the caller's clock (s).
+    pub stamp_s: f64,
+    pub joints: Vec<JointState>,
+}
+
+impl JointStates {
+    /// The state of the joint called `name`, if present.
+    pub fn get(&self, name: &str) -> Option<&JointState> {
+        self.joints.iter().find(|j| j.name == name)
+    }
+}
+
+/// Health counters of a servo bus link (zero for the `sim` driver).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LinkStats {
+    /// Instruction packets sent (first tries and retries).
+    pub transactions: u64,
+    /// Expected status packets not validly received within the read timeout (never came, or
+    /// came with a bad CRC or the wrong length).
+    pub missing_replies: u64,
+    /// Status packets dropped for a bad CRC.
+    pub crc_errors: u64,
+    /// Bytes or packets that did not parse (bad header, length, instruction, unexpected id).
+    pub malformed: u64,
+    /// Status packets whose error byte was not zero.
+    pub servo_errors: u64,
+    /// Repeated instructions after one of the above.
+    pub retries: u64,
+    /// Operations that still failed after all retries (reported to the caller as errors).
+    pub failures: u64,
+}

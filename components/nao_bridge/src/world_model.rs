@@ -1,0 +1,783 @@
+//! The global (team) world model: the local models of the controlled robot and its teammate(s)
+//! fused over time. Pure: every call takes the caller's time in seconds.
+//!
+//! # Ball
+//!
+//! A constant-velocity Kalman filter, state `[x, y, vx, vy]` (mm, mm/s, global frame), with
+//! continuous white-acceleration process noise of spectral density `ball_accel_sigma_mm_s2²`.
+//! Each debug packet carries the robot's last seen ball and its *ball age* (s since it was
+//! seen), so the observation time is `received_s - ball_age_s`:
+//!
+//! - a robot that lost the ball keeps sending the same position with a growing age: such
+//!   repeats (same position, age grown) are recognised and not fused again;
+//! - observations older than `max_ball_measurement_age_s` are ignored;
+//! - an observation older than the filter's time is carried forward to the filter's time with
+//!   the filter's velocity, its noise inflated by the velocity uncertainty over the lag;
+//! - fallen robots' observations are ignored;
+//! - the measurement noise grows with the distance from the observing robot;
+//! - a Mahalanobis gate rejects outliers; three rejections in a row (the ball was kicked or
+//!   moved by hand) or a track older than `ball_reset_after_s` re-initialise the filter.
+//!
+//! The ball's `age_s` is the time since any robot last saw it; its confidence is
+//! `exp(-age_s / ball_confidence_tau_s) / (1 + sigma_mm / 500)`.
+//!
+//! # Obstacles
+//!
+//! Obstacle timestamps are robot-clock milliseconds. Each robot's clock offset to ours is
+//! estimated as the minimum over all its packets of `received_ms - last_seen_ms` (the freshest
+//! sighting, up to the network latency), so each obstacle gets a time on our clock. An
+//! observation is associated with the nearest track within `obstacle_gate_mm` (greedy), moves
+//! it by exponential smoothing and keeps the most specific kind; unassociated fresh
+//! observations start tracks; tracks unseen for `obstacle_timeout_s` are dropped. Obstacles
+//! within `own_robot_exclusion_mm` of one of our own robots are those robots and are not
+//! listed.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2, Vector4};
+use serde::{Deserialize, Serialize};
+
+use crate::types::{
+    BallEstimate, FieldPoint, GlobalWorldModel, LocalWorldModel, ObstacleKind, TeamRobot,
+    TrackedObstacle,
+};
+
+/// Two ball reports with the same position whose observation times differ by less than this
+/// are one sighting sent twice (s): covers network jitter at the 100 ms packet period.
+const REPEAT_TOLERANCE_S: f64 = 0.05;
+
+/// Tuning of the fusion. Distances in mm, times in s.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FusionConfig {
+    /// Player number of the operator-controlled robot.
+    pub controlled_player: u8,
+    /// Our team number: models of other teams are ignored (`None` accepts all).
+    pub team_number: Option<u8>,
+    /// Ball acceleration noise (mm/s²).
+    pub ball_accel_sigma_mm_s2: f64,
+    /// Ball measurement noise at the robot (mm).
+    pub ball_sigma_base_mm: f64,
+    /// Extra measurement noise per mm of distance from the observing robot.
+    pub ball_sigma_per_mm: f64,
+    /// Observations older than this are ignored (s).
+    pub max_ball_measurement_age_s: f64,
+    /// A track not updated for this long is re-initialised by the next observation (s).
+    pub ball_reset_after_s: f64,
+    /// The ball is no longer reported after this long without observation (s).
+    pub ball_forget_after_s: f64,
+    /// Longest extrapolation past the last observation (s).
+    pub ball_max_prediction_s: f64,
+    /// Confidence decay time (s).
+    pub ball_confidence_tau_s: f64,
+    /// Mahalanobis distance² gate (2 dof).
+    pub ball_gate_chi2: f64,
+    /// Obstacle association distance (mm).
+    pub obstacle_gate_mm: f64,
+    /// Obstacle track lifetime without observation (s).
+    pub obstacle_timeout_s: f64,
+    /// Weight of a new observation in the track position (0..1].
+    pub obstacle_smoothing: f64,
+    /// Obstacles this close to one of our robots are that robot (mm).
+    pub own_robot_exclusion_mm: f64,
+    /// A robot silent for this long has freshness 0 (s).
+    pub robot_timeout_s: f64,
+}
+
+impl Default for FusionConfig {
+    fn default() -> Self {
+        Self {
+            controlled_player: 2,
+            team_number: None,
+            ball_accel_sigma_mm_s2: 150.0,
+            ball_sigma_base_mm: 40.0,
+            ball_sigma_per_mm: 0.03,
+            max_ball_measurement_age_s: 1.0,
+            ball_reset_after_s: 2.0,
+            ball_forget_after_s: 10.0,
+            ball_max_prediction_s: 1.0,
+            ball_confidence_tau_s: 2.0,
+            ball_gate_chi2: 16.0,
+            obstacle_gate_mm: 500.0,
+            obstacle_timeout_s: 3.0,
+            obstacle_smoothing: 0.3,
+            own_robot_exclusion_mm: 350.0,
+            robot_timeout_s: 2.0,
+        }
+    }
+}
+
+/// What [`BallFilter::update`] did with a measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BallUpdate {
+    /// Started a new track.
+    Initialised,
+    /// Fused.
+    Fused,
+    /// Outside the gate, not fused.
+    Rejected,
+}
+
+/// Constant-velocity Kalman filter for the ball (mm, mm/s, s).
+#[derive(Debug, Clone)]
+pub struct BallFilter {
+    accel_sigma: f64,
+    gate_chi2: f64,
+    reset_after_s: f64,
+    x: Vector4<f64>,
+    p: Matrix4<f64>,
+    /// Time of the state (s).
+    t_s: f64,
+    /// Time of the last fused observation (s), `None` before the first.
+    last_obs_s: Option<f64>,
+    rejections: u32,
+}
+
+impl BallFilter {
+    /// A filter with acceleration noise `accel_sigma_mm_s2`, a Mahalanobis² gate and a reset
+    /// time (s).
+    pub fn new(accel_sigma_mm_s2: f64, gate_chi2: f64, reset_after_s: f64) -> Self {
+        Self {
+            accel_sigma: accel_sigma_mm_s2,
+            gate_chi2,
+            reset_after_s,
+            x: Vector4::zeros(),
+            p: Matrix4::identity(),
+            t_s: 0.0,
+            last_obs_s: None,
+            rejections: 0,
+        }
+    }
+
+    fn transition(&self, dt: f64) -> (Matrix4<f64>, Matrix4<f64>) {
+        let f = Matrix4::new(
+            1.0, 0.0, dt, 0.0, //
+            0.0, 1.0, 0.0, dt, //
+            0.0, 0.0, 1.0, 0.0, //
+            0.0, 0.0, 0.0, 1.0,
+        );
+        let q = self.accel_sigma * self.accel_sigma;
+        let (a, b, c) = (dt.powi(3) / 3.0 * q, dt.powi(2) / 2.0 * q, dt * q);
+        let qm = Matrix4::new(
+            a, 0.0, b, 0.0, //
+            0.0, a, 0.0, b, //
+            b, 0.0, c, 0.0, //
+            0.0, b, 0.0, c,
+        );
+        (f, qm)
+    }
+
+    fn predicted(&self, t_s: f64) -> (Vector4<f64>, Matrix4<f64>) {
+        let dt = t_s - self.t_s;
+        if dt <= 0.0 {
+            return (self.x, self.p);
+        }
+        let (f, q) = self.transition(dt);
+        (f * self.x, f * self.p * f.transpose() + q)
+    }
+
+    /// Move the state forward to `t_s` (no-op for earlier times).
+    pub fn predict(&mut self, t_s: f64) {
+        if t_s > self.t_s {
+            let (x, p) = self.predicted(t_s);
+            self.x = x;
+            self.p = p;
+            self.t_s = t_s;
+        }
+    }
+
+    fn initialise(&mut self, z: Vector2<f64>, sigma_mm: f64, t_obs_s: f64) {
+        let r = sigma_mm * sigma_mm;
+        self.x = Vector4::new(z.x, z.y, 0.0, 0.0);
+        // Velocity unknown: up to ~2 m/s.
+        self.p = Matrix4::from_diagonal(&Vector4::new(r, r, 2000.0f64.powi(2), 2000.0f64.powi(2)));
+        self.t_s = t_obs_s;
+        self.last_obs_s = Some(t_obs_s);
+        self.rejections = 0;
+    }
+
+    /// Fuse a position measurement `z` (mm) with standard deviation `sigma_mm`, observed at
+    /// `t_obs_s`. A measurement older than the state is carried forward with the estimated
+    /// velocity and its noise inflated accordingly.
+    pub fn update(&mut self, z: FieldPoint, sigma_mm: f64, t_obs_s: f64) -> BallUpdate {
+        let z = Vector2::new(f64::from(z.x_mm), f64::from(z.y_mm));
+        let stale = self
+            .last_obs_s
+            .is_none_or(|t| t_obs_s - t > self.reset_after_s);
+        if stale || self.rejections >= 3 {
+            self.initialise(z, sigma_mm, t_obs_s.max(self.t_s));
+            return BallUpdate::Initialised;
+        }
+        let mut r = Matrix2::identity() * sigma_mm * sigma_mm;
+        let mut z = z;
+        if t_obs_s < self.t_s {
+            let lag = self.t_s - t_obs_s;
+            z += Vector2::new(self.x[2], self.x[3]) * lag;
+            r += Matrix2::new(
+                self.p[(2, 2)],
+                self.p[(2, 3)],
+                self.p[(3, 2)],
+                self.p[(3, 3)],
+            ) * lag
+                * lag;
+        } else {
+            self.predict(t_obs_s);
+        }
+        let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+        let y = z - h * self.x;
+        let s = h * self.p * h.transpose() + r;
+        let Some(s_inv) = s.try_inverse() else {
+            return BallUpdate::Rejected;
+        };
+        let d2 = (y.transpose() * s_inv * y)[(0, 0)];
+        if d2 > self.gate_chi2 {
+            self.rejections += 1;
+            return BallUpdate::Rejected;
+        }
+        let k = self.p * h.transpose() * s_inv;
+        self.x += k * y;
+        // Joseph form keeps P symmetric positive definite.
+        let i_kh = Matrix4::identity() - k * h;
+        self.p = i_kh * self.p * i_kh.transpose() + k * r * k.transpose();
+        self.rejections = 0;
+        self.last_obs_s = Some(self.last_obs_s.map_or(t_obs_s, |t| t.max(t_obs_s)));
+        BallUpdate::Fused
+    }
+
+    /// Position, velocity and position sigma (mm, root mean of the two variances) at `t_s`,
+    /// without changing the filter; `None` before the first observation.
+    pub fn estimate_at(&self, t_s: f64) -> Option<(FieldPoint, FieldPoint, f64)> {
+        self.last_obs_s?;
+        let (x, p) = self.predicted(t_s);
+        let sigma = ((p[(0, 0)] + p[(1, 1)]) / 2.0).max(0.0).sqrt();
+        Some((
+            FieldPoint::new(x[0] as f32, x[1] as f32),
+            FieldPoint::new(x[2] as f32, x[3] as f32),
+            sigma,
+        ))
+    }
+
+    /// Time of the last fused observation (s).
+    pub fn last_observation_s(&self) -> Option<f64> {
+        self.last_obs_s
+    }
+}
+
+#[derive(Debug, Clone)]
+struct RobotEntry {
+    model: LocalWorldModel,
+    received_s: f64,
+    /// min(received_ms - last_seen_ms) over all sightings; robot clock -> ours.
+    clock_offset_ms: Option<f64>,
+    max_last_seen_ms: u32,
+    /// Last ball observation fused from this robot: position and observation time (s).
+    last_ball: Option<(FieldPoint, f64)>,
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    kind: ObstacleKind,
+    x: f64,
+    y: f64,
+    last_seen_s: f64,
+    observations: u32,
+}
+
+/// Fuses robots' local models into a [`GlobalWorldModel`].
+#[derive(Debug, Clone)]
+pub struct WorldModelFusion {
+    config: FusionConfig,
+    robots: BTreeMap<u8, RobotEntry>,
+    ball: BallFilter,
+    tracks: Vec<Track>,
+    ball_updates: u64,
+}
+
+impl WorldModelFusion {
+    /// An empty model.
+    pub fn new(config: FusionConfig) -> Self {
+        let ball = BallFilter::new(
+            config.ball_accel_sigma_mm_s2,
+            config.ball_gate_chi2,
+            config.ball_reset_after_s,
+        );
+        Self {
+            config,
+            robots: BTreeMap::new(),
+            ball,
+            tracks: Vec::new(),
+            ball_updates: 0,
+        }
+    }
+
+    /// Number of ball observations fused or used to initialise so far.
+    pub fn ball_updates(&self) -> u64 {
+        self.ball_updates
+    }
+
+    /// Fuse one robot's local model received at `received_s`. Returns false (and ignores it)
+    /// when it is from another team.
+    pub fn ingest(&mut self, model: &LocalWorldModel, received_s: f64) -> bool {
+        if self
+            .config
+            .team_number
+            .is_some_and(|t| t != model.team_number)
+        {
+            return false;
+        }
+        let player = model.player_number;
+        let entry = self.robots.entry(player).or_insert_with(|| RobotEntry {
+            model: model.clone(),
+            received_s,
+            clock_offset_ms: None,
+            max_last_seen_ms: 0,
+            last_ball: None,
+        });
+        entry.model = model.clone();
+        entry.received_s = received_s;
+
+        // Ball.
+        let age = f64::from(model.ball_age_s);
+        let t_obs = received_s - age;
+        // The same sighting sent again: same position, same observation time (up to jitter).
+        let repeat = entry
+            .last_ball
+            .is_some_and(|(p, t)| p == model.ball && (t_obs - t).abs() < REPEAT_TOLERANCE_S);
+        if !model.fallen && !repeat && (0.0..=self.config.max_ball_measurement_age_s).contains(&age)
+        {
+            let dist = f64::from(model.pose.position().distance_to(&model.ball));
+            let sigma = self.config.ball_sigma_base_mm + self.config.ball_sigma_per_mm * dist;
+            if self.ball.update(model.ball, sigma, t_obs) != BallUpdate::Rejected {
+                self.ball_updates += 1;
+            }
+            entry.last_ball = Some((model.ball, t_obs));
+        } else if !repeat {
+            entry.last_ball = None;
+        }
+
+        // Robot clock offset (reset when the robot's clock jumped back: a reboot).
+        let rx_ms = received_s * 1000.0;
+        let newest = model.obstacles.iter().map(|o| o.last_seen_ms).max();
+        if let Some(newest) = newest {
+            if newest.saturating_add(10_000) < entry.max_last_seen_ms {
+                entry.clock_offset_ms = None;
+            }
+            entry.max_last_seen_ms = newest;
+            let off = rx_ms - f64::from(newest);
+            entry.clock_offset_ms = Some(entry.clock_offset_ms.map_or(off, |o: f64| o.min(off)));
+        }
+        let offset = entry.clock_offset_ms;
+
+        // Obstacles.
+        let own: Vec<FieldPoint> = self
+            .robots
+            .values()
+            .map(|r| r.model.pose.position())
+            .collect();
+        let mut taken = vec![false; self.tracks.len()];
+        for o in &model.obstacles {
+            let Some(offset) = offset else { break };
+            let t_obs = (f64::from(o.last_seen_ms) + offset) / 1000.0;
+            if received_s - t_obs > self.config.obstacle_timeout_s {
+                continue;
+            }
+            if own
+                .iter()
+                .any(|p| f64::from(p.distance_to(&o.center)) < self.config.own_robot_exclusion_mm)
+            {
+                continue;
+            }
+            let (ox, oy) = (f64::from(o.center.x_mm), f64::from(o.center.y_mm));
+            let nearest = self
+                .tracks
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !taken.get(*i).copied().unwrap_or(true))
+                .map(|(i, t)| (i, (t.x - ox).hypot(t.y - oy)))
+                .filter(|(_, d)| *d < self.config.obstacle_gate_mm)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            match nearest {
+                Some((i, _)) => {
+                    if let Some(slot) = taken.get_mut(i) {
+                        *slot = true;
+                    }
+                    if let Some(t) = self.tracks.get_mut(i)
+                        && t_obs > t.last_seen_s
+                    {
+                        let a = self.config.obstacle_smoothing;
+                        t.x += a * (ox - t.x);
+                        t.y += a * (oy - t.y);
+                        t.last_seen_s = t_obs;
+                        t.observations += 1;
+                        if o.kind.specificity() >= t.kind.specificity() {
+                            t.kind = o.kind;
+                        }
+                    }
+                }
+                None => self.tracks.push(Track {
+                    kind: o.kind,
+                    x: ox,
+                    y: oy,
+                    last_seen_s: t_obs,
+                    observations: 1,
+                }),
+            }
+        }
+        let timeout = self.config.obstacle_timeout_s;
+        self.tracks
+            .retain(|t| received_s - t.last_seen_s <= timeout);
+        true
+    }
+
+    /// The fused model at `now_s`.
+    pub fn snapshot(&self, now_s: f64) -> GlobalWorldModel {
+        let c = &self.config;
+        let robots: Vec<TeamRobot> = self
+            .robots
+            .iter()
+            .map(|(n, r)| TeamRobot {
+                player_number: *n,
+                role: r.model.role,
+                pose: r.model.pose,
+                fallen: r.model.fallen,
+                age_s: now_s - r.received_s,
+            })
+            .collect();
+        let ball = self.ball.last_observation_s().and_then(|t_last| {
+            let age = (now_s - t_last).max(0.0);
+            if age > c.ball_forget_after_s {
+                return None;
+            }
+            let (position, velocity, sigma) = self
+                .ball
+                .estimate_at(now_s.min(t_last + c.ball_max_prediction_s))?;
+            Some(BallEstimate {
+                position,
+                velocity,
+                age_s: age,
+                sigma_mm: sigma,
+                confidence: (-age / c.ball_confidence_tau_s).exp() / (1.0 + sigma / 500.0),
+            })
+        });
+        let own: Vec<FieldPoint> = robots.iter().map(|r| r.pose.position()).collect();
+        let obstacles = self
+            .tracks
+            .iter()
+            .filter(|t| now_s - t.last_seen_s <= c.obstacle_timeout_s)
+            .filter(|t| {
+                let p = FieldPoint::new(t.x as f32, t.y as f32);
+                own.iter()
+                    .all(|o| f64::from(o.distance_to(&p)) >= c.own_robot_exclusion_mm)
+            })
+            .map(|t| TrackedObstacle {
+                kind: t.kind,
+                center: FieldPoint::new(t.x as f32, t.y as f32),
+                age_s: (now_s - t.last_seen_s).max(0.0),
+                observations: t.observations,
+            })
+            .collect();
+        let controlled = robots
+            .iter()
+            .find(|r| r.player_number == c.controlled_player);
+        let autonomous = robots
+            .iter()
+            .find(|r| r.player_number != c.controlled_player);
+        let autonomous_is_striker = match (controlled, autonomous, &ball) {
+            (Some(ctl), Some(aut), Some(b)) => Some(
+                aut.pose.position().distance_to(&b.position)
+                    < ctl.pose.position().distance_to(&b.position),
+            ),
+            _ => None,
+        };
+        let freshness =
+            controlled.map_or(0.0, |r| (1.0 - r.age_s / c.robot_timeout_s).clamp(0.0, 1.0));
+        let confidence = ball.as_ref().map_or(0.0, |b| b.confidence) * freshness;
+        GlobalWorldModel {
+            time_s: now_s,
+            robots,
+            ball,
+            obstacles,
+            autonomous_is_striker,
+            confidence,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::{ArmContact, Obstacle, PlayerRole, Pose2, WhistleState};
+
+    /// Deterministic Gaussian noise for tests (SplitMix64 + Box-Muller).
+    struct Noise(u64);
+    impl Noise {
+        fn uniform(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn gauss(&mut self, sigma: f64) -> f64 {
+            let u1 = self.uniform().max(1e-12);
+            let u2 = self.uniform();
+            sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    fn local(player: u8, pose: (f32, f32), ball: (f32, f32), ball_age_s: f32) -> LocalWorldModel {
+        LocalWorldModel {
+            player_number: player,
+            team_number: 5,
+            fallen: false,
+            pose: Pose2 {
+                x_mm: pose.0,
+                y_mm: pose.1,
+                theta_rad: 0.0,
+            },
+            ball_age_s,
+            ball: FieldPoint::new(ball.0, ball.1),
+            role: if player == 2 {
+                PlayerRole::Controlled
+            } else {
+                PlayerRole::Autonomous
+            },
+            obstacles_seen: 0,
+            obstacles: vec![],
+            message_budget: 1200,
+            secs_remaining: 90,
+            left_arm: ArmContact::default(),
+            right_arm: ArmContact::default(),
+            time_since_whistle_ms: 0,
+            whistle: WhistleState::NotDetected,
+            team_ball: FieldPoint::default(),
+            team_ball_velocity: FieldPoint::default(),
+            battery: 1.0,
+            cpu_temperature_c: 40.0,
+            referee_gesture: 0,
+        }
+    }
+
+    #[test]
+    fn kalman_converges_on_a_moving_ball_with_noise() {
+        let mut noise = Noise(7);
+        let mut f = BallFilter::new(FusionConfig::default().ball_accel_sigma_mm_s2, 16.0, 2.0);
+        let (v_x, v_y) = (600.0, -250.0); // mm/s
+        let truth = |t: f64| (-2000.0 + v_x * t, 1000.0 + v_y * t);
+        let sigma = 60.0; // mm per axis: ~85 mm radial rms for a raw measurement
+        let (mut pos_sq, mut vel_sq, mut raw_sq, mut n) = (0.0, 0.0, 0.0, 0.0);
+        for i in 0..=100 {
+            let t = f64::from(i) * 0.1;
+            let (x, y) = truth(t);
+            let (zx, zy) = (x + noise.gauss(sigma), y + noise.gauss(sigma));
+            let z = FieldPoint::new(zx as f32, zy as f32);
+            assert_ne!(f.update(z, sigma, t), BallUpdate::Rejected);
+            if i >= 30 {
+                let (p, v, _) = f.estimate_at(t).unwrap();
+                pos_sq += (f64::from(p.x_mm) - x).powi(2) + (f64::from(p.y_mm) - y).powi(2);
+                vel_sq += (f64::from(v.x_mm) - v_x).powi(2) + (f64::from(v.y_mm) - v_y).powi(2);
+                raw_sq += (zx - x).powi(2) + (zy - y).powi(2);
+                n += 1.0;
+            }
+        }
+        let (pos_rms, vel_rms, raw_rms) = (
+            (pos_sq / n).sqrt(),
+            (vel_sq / n).sqrt(),
+            (raw_sq / n).sqrt(),
+        );
+        eprintln!(
+            "after 3 s: position rms {pos_rms:.1} mm (raw {raw_rms:.1} mm), velocity rms {vel_rms:.1} mm/s"
+        );
+        assert!(
+            pos_rms < 0.7 * raw_rms,
+            "filtered {pos_rms} vs raw {raw_rms}"
+        );
+        assert!(vel_rms < 150.0, "velocity rms {vel_rms} mm/s");
+        // Prediction 1 s ahead follows the motion and is less certain.
+        let (_, _, s0) = f.estimate_at(10.0).unwrap();
+        let (p1, _, s1) = f.estimate_at(11.0).unwrap();
+        let (x1, y1) = truth(11.0);
+        assert!((f64::from(p1.x_mm) - x1).hypot(f64::from(p1.y_mm) - y1) < 250.0);
+        assert!(s1 > s0, "uncertainty grows when predicting");
+    }
+
+    #[test]
+    fn kicked_ball_reinitialises_after_three_rejections() {
+        let mut f = BallFilter::new(1000.0, 16.0, 2.0);
+        for i in 0..20 {
+            f.update(FieldPoint::new(0.0, 0.0), 40.0, f64::from(i) * 0.1);
+        }
+        let jump = FieldPoint::new(3000.0, 0.0);
+        assert_eq!(f.update(jump, 40.0, 2.0), BallUpdate::Rejected);
+        assert_eq!(f.update(jump, 40.0, 2.1), BallUpdate::Rejected);
+        assert_eq!(f.update(jump, 40.0, 2.2), BallUpdate::Rejected);
+        assert_eq!(f.update(jump, 40.0, 2.3), BallUpdate::Initialised);
+        assert_eq!(f.estimate_at(2.3).unwrap().0, jump);
+    }
+
+    #[test]
+    fn repeated_stale_ball_reports_are_not_fused_again() {
+        let mut w = WorldModelFusion::new(FusionConfig::default());
+        // Seen fresh at t = 1.0 at (1000, 0).
+        w.ingest(&local(2, (0.0, 0.0), (1000.0, 0.0), 0.0), 1.0);
+        assert_eq!(w.ball_updates(), 1);
+        // Then lost: the same position with a growing age, every 100 ms for 3 s.
+        for i in 1..=30 {
+            let age = i as f32 * 0.1;
+            w.ingest(
+                &local(2, (0.0, 0.0), (1000.0, 0.0), age),
+                1.0 + f64::from(i) * 0.1,
+            );
+        }
+        assert_eq!(
+            w.ball_updates(),
+            1,
+            "repeats of one sighting are one observation"
+        );
+        let m = w.snapshot(4.0);
+        let b = m.ball.unwrap();
+        assert!((b.age_s - 3.0).abs() < 1e-6, "ball age {}", b.age_s);
+        assert!(
+            b.confidence < 0.25,
+            "old ball has low confidence: {}",
+            b.confidence
+        );
+        // Forgotten after 10 s.
+        assert!(w.snapshot(11.5).ball.is_none());
+    }
+
+    #[test]
+    fn delayed_observation_is_dated_by_its_age() {
+        let cfg = FusionConfig::default();
+        let mut w = WorldModelFusion::new(cfg);
+        // A ball rolling at +500 mm/s along x, seen by the robot at t - 0.4 s each time
+        // (ball age 0.4 s in every packet): the fused estimate at t is the current position.
+        for i in 0..40 {
+            let t = f64::from(i) * 0.1;
+            let seen_at = t - 0.4;
+            let x = 500.0 * seen_at;
+            w.ingest(&local(2, (0.0, 500.0), (x as f32, 0.0), 0.4), t);
+        }
+        let t = 3.9;
+        let b = w.snapshot(t).ball.unwrap();
+        assert!(
+            (f64::from(b.position.x_mm) - 500.0 * t).abs() < 60.0,
+            "x {}",
+            b.position.x_mm
+        );
+        assert!((f64::from(b.velocity.x_mm) - 500.0).abs() < 60.0);
+        assert!((b.age_s - 0.4).abs() < 1e-6);
+        // Too old observations (> 1 s) are not used at all.
+        let mut w = WorldModelFusion::new(FusionConfig::default());
+        w.ingest(&local(2, (0.0, 0.0), (100.0, 0.0), 1.5), 5.0);
+        assert!(w.snapshot(5.0).ball.is_none());
+    }
+
+    #[test]
+    fn teammate_ball_is_fused_and_fallen_robot_is_ignored() {
+        let mut w = WorldModelFusion::new(FusionConfig::default());
+        // The controlled robot is down and reports a wrong ball; the teammate sees it.
+        let mut down = local(2, (-1000.0, 0.0), (-4000.0, 2000.0), 0.0);
+        down.fallen = true;
+        for i in 0..10 {
+            let t = f64::from(i) * 0.1;
+            w.ingest(&down, t);
+            w.ingest(&local(1, (1500.0, 0.0), (2000.0, 300.0), 0.0), t);
+        }
+        let m = w.snapshot(1.0);
+        let b = m.ball.unwrap();
+        assert!(b.position.distance_to(&FieldPoint::new(2000.0, 300.0)) < 30.0);
+        // Another team's robot is ignored when our team number is configured.
+        let mut ours = WorldModelFusion::new(FusionConfig {
+            team_number: Some(5),
+            ..FusionConfig::default()
+        });
+        let mut stranger = local(3, (0.0, 0.0), (0.0, 0.0), 0.0);
+        stranger.team_number = 6;
+        assert!(!ours.ingest(&stranger, 0.0));
+        assert!(ours.ingest(&local(2, (0.0, 0.0), (0.0, 0.0), 0.0), 0.0));
+        assert_eq!(ours.snapshot(0.0).robots.len(), 1);
+        assert_eq!(m.autonomous_is_striker, Some(true));
+        assert_eq!(m.robots.len(), 2);
+        assert!(
+            m.confidence > 0.5 && m.confidence <= 1.0,
+            "{} {:?}",
+            m.confidence,
+            m
+        );
+        // The controlled robot silent for > 2 s: confidence drops to 0.
+        assert_eq!(w.snapshot(3.5).confidence, 0.0);
+    }
+
+    #[test]
+    fn obstacles_are_associated_aged_and_dropped() {
+        let mut w = WorldModelFusion::new(FusionConfig::default());
+        // Robot clock starts at 50 s when our clock is at 0.
+        let robot_ms = |t: f64| (50_000.0 + t * 1000.0) as u32;
+        for i in 0..10 {
+            let t = f64::from(i) * 0.1;
+            let mut m = local(2, (0.0, 0.0), (500.0, 0.0), 0.0);
+            let noise = if i % 2 == 0 { 40.0 } else { -40.0 };
+            m.obstacles = vec![
+                // An opponent at (2000, 1000), first seen as "some robot".
+                Obstacle {
+                    kind: if i < 3 {
+                        ObstacleKind::SomeRobot
+                    } else {
+                        ObstacleKind::Opponent
+                    },
+                    center: FieldPoint::new(2000.0 + noise, 1000.0),
+                    last_seen_ms: robot_ms(t),
+                },
+                // A second opponent far from the first.
+                Obstacle {
+                    kind: ObstacleKind::Opponent,
+                    center: FieldPoint::new(-2500.0, -1500.0 + noise),
+                    last_seen_ms: robot_ms(t),
+                },
+                // Our teammate (robot 1 stands there): not an obstacle.
+                Obstacle {
+                    kind: ObstacleKind::Teammate,
+                    center: FieldPoint::new(1000.0, -2000.0),
+                    last_seen_ms: robot_ms(t),
+                },
+            ];
+            m.obstacles_seen = 3;
+            w.ingest(&m, t);
+            w.ingest(&local(1, (1050.0, -2000.0), (500.0, 0.0), 0.0), t);
+        }
+        let s = w.snapshot(0.9);
+        assert_eq!(s.obstacles.len(), 2, "{:?}", s.obstacles);
+        let first = s.obstacles.iter().find(|o| o.center.x_mm > 0.0).unwrap();
+        assert_eq!(first.kind, ObstacleKind::Opponent);
+        assert_eq!(first.observations, 10);
+        assert!(first.center.distance_to(&FieldPoint::new(2000.0, 1000.0)) < 40.0);
+        assert!(first.age_s < 0.05);
+        // The second obstacle disappears from view: it keeps its last-seen time and ages.
+        for i in 10..50 {
+            let t = f64::from(i) * 0.1;
+            let mut m = local(2, (0.0, 0.0), (500.0, 0.0), 0.0);
+            m.obstacles = vec![Obstacle {
+                kind: ObstacleKind::Opponent,
+                center: FieldPoint::new(2000.0, 1000.0),
+                last_seen_ms: robot_ms(t),
+            }];
+            m.obstacles_seen = 1;
+            w.ingest(&m, t);
+        }
+        let s = w.snapshot(4.9);
+        assert_eq!(s.obstacles.len(), 1, "the unseen one is dropped after 3 s");
+        // Aged in between: at 2.9 s the second one was 2 s old.
+        let mut w2 = WorldModelFusion::new(FusionConfig::default());
+        let mut m = local(2, (0.0, 0.0), (0.0, 0.0), 0.0);
+        m.obstacles = vec![Obstacle {
+            kind: ObstacleKind::Opponent,
+            center: FieldPoint::new(3000.0, 0.0),
+            last_seen_ms: 10_000,
+        }];
+        m.obstacles_seen = 1;
+        w2.ingest(&m, 100.0);
+        let s = w2.snapshot(102.0);
+        assert!((s.obstacles[0].age_s - 2.0).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,1094 @@
+//! Robot models from URDF, kinematic chains, forward kinematics and geometric Jacobians.
+//!
+//! # Conventions
+//! - Units: metres, radians, m/s and rad/s, as in URDF.
+//! - A joint's transform is `parent_T_child(q) = origin * motion(q)`, where `origin` is the URDF
+//!   `<origin xyz rpy>` (rpy = fixed-axis roll about x, then pitch about y, then yaw about z, i.e.
+//!   `R = Rz(yaw) * Ry(pitch) * Rx(roll)`), and `motion(q)` is a rotation of `q` rad about the
+//!   joint axis (revolute, continuous) or a translation of `q` m along it (prismatic).
+//! - A [`Chain`] runs from a root link to a tip link that descends from it. Fixed joints in between
+//!   are folded into the next movable joint's precomputed origin (`pre`) or into the chain's `tail`,
+//!   so FK costs one isometry product per movable joint plus one for the tail, and allocates nothing.
+//! - [`Chain::fk`] returns `root_T_tip`. [`Chain::jacobian`] is the geometric Jacobian expressed in
+//!   the root frame, 6 rows: linear velocity of the tip origin (rows 0..3, m/s per unit joint speed)
+//!   then angular velocity (rows 3..6, rad/s), one column per movable joint in chain order.
+//!
+//! # Named body parts
+//! [`BodyPart`] names the chains that the IK and gaze controllers use on Loki (`models/loki.urdf`):
+//!
+//! | name | root | tip | joints |
+//! |---|---|---|---|
+//! | `left_arm_4`, `right_arm_4` | `torso` | `{side}_wrist_center` | shoulder pitch/roll/yaw, elbow |
+//! | `left_arm_7`, `right_arm_7` | `torso` | `{side}_hand_center` | + forearm roll, wrist pitch/roll |
+//! | `left_arm_11`, `right_arm_11` | `torso` | `{side}_fingertip` | + the 4 finger joints |
+//! | `left_arm_13`, `right_arm_13` | `base_footprint` | `{side}_fingertip` | + base yaw and base forward |
+//! | `left_arm`, `right_arm` | = `{side}_arm_7` (the reaching arm of "touch the ball") | | |
+//! | `neck` | `torso` | `head_rgbd_optical_frame` | neck rotation, pitch, roll, yaw |
+//! | `head` | `torso` | `head` | the same 4 neck joints, tip at the head link |
+//! | `left_eye`, `right_eye` | `head` | `{side}_eye_optical_frame` | eyes tilt, eye pan |
+//! | `base` | `base_footprint` | `base_link` | base yaw, base forward |
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix6xX, Translation3, Unit, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{DrError, Result};
+
+/// Kind of a URDF joint supported by robocog.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointKind {
+    /// Rotation about the axis, bounded by limits (rad).
+    Revolute,
+    /// Rotation about the axis without position limits (rad).
+    Continuous,
+    /// Translation along the axis (m).
+    Prismatic,
+    /// No motion.
+    Fixed,
+}
+
+impl JointKind {
+    /// True for joints that take a value.
+    pub fn is_movable(self) -> bool {
+        !matches!(self, JointKind::Fixed)
+    }
+}
+
+/// Position, velocity and effort limits of a joint (rad or m; rad/s or m/s; N m or N).
+///
+/// Continuous joints have infinite position limits.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct JointLimits {
+    /// Lower position limit (rad or m).
+    pub lower: f64,
+    /// Upper position limit (rad or m).
+    pub upper: f64,
+    /// Maximum speed (rad/s or m/s).
+    pub velocity: f64,
+    /// Maximum effort (N m or N).
+    pub effort: f64,
+}
+
+impl JointLimits {
+    /// Whether `q` is inside `[lower, upper]`.
+    pub fn contains(&self, q: f64) -> bool {
+        q >= self.lower && q <= self.upper
+    }
+    /// `q` clamped into `[lower, upper]`.
+    pub fn clamp(&self, q: f64) -> f64 {
+        q.clamp(self.lower, self.upper)
+    }
+}
+
+/// The joint motion `motion(q)` for a joint kind and unit axis.
+#[inline]
+pub fn joint_motion(kind: JointKind, axis: &Unit<Vector3<f64>>, q: f64) -> Isometry3<f64> {
+    match kind {
+        JointKind::Revolute | JointKind::Continuous => Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(axis, q),
+        ),
+        JointKind::Prismatic => Isometry3::from_parts(
+            Translation3::from(axis.into_inner() * q),
+            UnitQuaternion::identity(),
+        ),
+        JointKind::Fixed => Isometry3::identity(),
+    }
+}
+
+/// Simple collision geometry, in the link frame (m).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "shape", rename_all = "snake_case")]
+pub enum Shape {
+    /// Box centred on its origin, full side lengths (m).
+    Box {
+        /// Side lengths along x, y, z (m).
+        size_m: [f64; 3],
+    },
+    /// Cylinder along its local z axis, centred on its origin.
+    Cylinder {
+        /// Radius (m).
+        radius_m: f64,
+        /// Length (m).
+        length_m: f64,
+    },
+    /// Capsule along its local z axis (URDF 1.2).
+    Capsule {
+        /// Radius (m).
+        radius_m: f64,
+        /// Length of the cylindrical part (m).
+        length_m: f64,
+    },
+    /// Sphere centred on its origin.
+    Sphere {
+        /// Radius (m).
+        radius_m: f64,
+    },
+    /// A mesh file (kept by name; robocog does no mesh collision).
+    Mesh {
+        /// The URDF filename attribute.
+        filename: String,
+    },
+}
+
+/// One collision element of a link: a shape placed by `origin` in the link frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CollisionShape {
+    /// Pose of the shape in the link frame.
+    pub origin: Isometry3<f64>,
+    /// The shape.
+    pub shape: Shape,
+}
+
+/// A link of a robot model.
+#[derive(Debug, Clone)]
+pub struct LinkModel {
+    /// Link name.
+    pub name: String,
+    /// Index (into [`RobotModel::joints`]) of the joint whose child this link is; `None` for the root.
+    pub parent_joint: Option<usize>,
+    /// Collision elements.
+    pub collision: Vec<CollisionShape>,
+}
+
+/// A joint of a robot model.
+#[derive(Debug, Clone)]
+pub struct JointModel {
+    /// Joint name.
+    pub name: String,
+    /// Kind.
+    pub kind: JointKind,
+    /// Parent link index.
+    pub parent: usize,
+    /// Child link index.
+    pub child: usize,
+    /// Fixed `parent_T_jointframe` from the URDF `<origin>`.
+    pub origin: Isometry3<f64>,
+    /// Unit axis in the joint frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// Limits (infinite position limits for continuous and fixed joints).
+    pub limits: JointLimits,
+}
+
+impl JointModel {
+    /// `parent_T_child` for joint value `q` (rad or m).
+    #[inline]
+    pub fn transform(&self, q: f64) -> Isometry3<f64> {
+        self.origin * joint_motion(self.kind, &self.axis, q)
+    }
+}
+
+/// Pinhole intrinsics of a camera (pixels), with its valid depth range (m).
+///
+/// The camera frame is an optical frame: z forward along the optical axis, x right, y down.
+/// A point `(x, y, z)` with `z > 0` projects to `u = fx x / z + cx`, `v = fy y / z + cy`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraIntrinsics {
+    /// Camera name (for example `head_rgbd`).
+    pub name: String,
+    /// The optical frame (a link of the model).
+    pub frame: String,
+    /// Image width (px).
+    pub width: u32,
+    /// Image height (px).
+    pub height: u32,
+    /// Focal length along u (px).
+    pub fx: f64,
+    /// Focal length along v (px).
+    pub fy: f64,
+    /// Principal point u (px).
+    pub cx: f64,
+    /// Principal point v (px).
+    pub cy: f64,
+    /// Nearest valid depth (m).
+    pub min_range_m: f64,
+    /// Farthest valid depth (m).
+    pub max_range_m: f64,
+}
+
+impl CameraIntrinsics {
+    /// Pixel `(u, v)` of a point in the optical frame, or `None` if it is behind the camera.
+    pub fn project(&self, p: &Vector3<f64>) -> Option<(f64, f64)> {
+        if p.z <= 0.0 {
+            return None;
+        }
+        Some((self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
+    }
+
+    /// Whether a point in the optical frame is in the frustum: inside the image and within range.
+    pub fn sees(&self, p: &Vector3<f64>) -> bool {
+        if p.z < self.min_range_m || p.z > self.max_range_m {
+            return false;
+        }
+        match self.project(p) {
+            Some((u, v)) => {
+                u >= -0.5
+                    && u < f64::from(self.width) - 0.5
+                    && v >= -0.5
+                    && v < f64::from(self.height) - 0.5
+            }
+            None => false,
+        }
+    }
+}
+
+/// A named body part: a documented chain of Loki (see the module docs for the table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BodyPart {
+    /// The name, e.g. `left_arm_7`.
+    pub name: &'static str,
+    /// Root link of the chain.
+    pub root: &'static str,
+    /// Tip link of the chain.
+    pub tip: &'static str,
+    /// Number of movable joints in the chain.
+    pub dof: usize,
+}
+
+/// The named body parts of Loki (see the module docs).
+pub const BODY_PARTS: &[BodyPart] = &[
+    BodyPart {
+        name: "left_arm_4",
+        root: "torso",
+        tip: "left_wrist_center",
+        dof: 4,
+    },
+    BodyPart {
+        name: "left_arm_7",
+        root: "torso",
+        tip: "left_hand_center",
+        dof: 7,
+    },
+    BodyPart {
+        name: "left_arm_11",
+        root: "torso",
+        tip: "left_fingertip",
+        dof: 11,
+    },
+    BodyPart {
+        name: "left_arm_13",
+        root: "base_footprint",
+        tip: "left_fingertip",
+        dof: 13,
+    },
+    BodyPart {
+        name: "left_arm",
+        root: "torso",
+        tip: "left_hand_center",
+        dof: 7,
+    },
+    BodyPart {
+        name: "right_arm_4",
+        root: "torso",
+        tip: "right_wrist_center",
+        dof: 4,
+    },
+    BodyPart {
+        name: "right_arm_7",
+        root: "torso",
+        tip: "right_hand_center",
+        dof: 7,
+    },
+    BodyPart {
+        name: "right_arm_11",
+        root: "torso",
+        tip: "right_fingertip",
+        dof: 11,
+    },
+    BodyPart {
+        name: "right_arm_13",
+        root: "base_footprint",
+        tip: "right_fingertip",
+        dof: 13,
+    },
+    BodyPart {
+        name: "right_arm",
+        root: "torso",
+        tip: "right_hand_center",
+        dof: 7,
+    },
+    BodyPart {
+        name: "neck",
+        root: "torso",
+        tip: "head_rgbd_optical_frame",
+        dof: 4,
+    },
+    BodyPart {
+        name: "head",
+        root: "torso",
+        tip: "head",
+        dof: 4,
+    },
+    BodyPart {
+        name: "left_eye",
+        root: "head",
+        tip: "left_eye_optical_frame",
+        dof: 2,
+    },
+    BodyPart {
+        name: "right_eye",
+        root: "head",
+        tip: "right_eye_optical_frame",
+        dof: 2,
+    },
+    BodyPart {
+        name: "base",
+        root: "base_footprint",
+        tip: "base_link",
+        dof: 2,
+    },
+];
+
+impl BodyPart {
+    /// Looks a body part up by name.
+    pub fn find(name: &str) -> Result<&'static BodyPart> {
+        BODY_PARTS.iter().find(|b| b.name == name).ok_or_else(|| {
+            DrError::UnknownBodyPart(
+                name.to_string(),
+                BODY_PARTS
+                    .iter()
+                    .map(|b| b.name)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            )
+        })
+    }
+}
+
+/// One movable joint of a [`Chain`].
+#[derive(Debug, Clone)]
+pub struct ChainJoint {
+    /// Joint name.
+    pub name: String,
+    /// Kind (never `Fixed`).
+    pub kind: JointKind,
+    /// Fixed transform from the previous movable joint's frame (or the chain root) to this
+    /// joint's frame: the product of the fixed joints in between and this joint's origin.
+    pub pre: Isometry3<f64>,
+    /// Unit axis in this joint's frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// Limits.
+    pub limits: JointLimits,
+}
+
+/// An open kinematic chain from a root link to a tip link, ready for FK and Jacobians.
+#[derive(Debug, Clone)]
+pub struct Chain {
+    /// Root link name.
+    pub root: String,
+    /// Tip link name.
+    pub tip: String,
+    /// Movable joints, root to tip.
+    pub joints: Vec<ChainJoint>,
+    /// Fixed transform from the last movable joint's frame (or the root if none) to the tip.
+    pub tail: Isometry3<f64>,
+}
+
+impl Chain {
+    /// Number of movable joints.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Joint names, root to tip.
+    pub fn joint_names(&self) -> Vec<&str> {
+        self.joints.iter().map(|j| j.name.as_str()).collect()
+    }
+
+    /// Joint limits, root to tip.
+    pub fn limits(&self) -> Vec<JointLimits> {
+        self.joints.iter().map(|j| j.limits).collect()
+    }
+
+    fn check(&self, q: &[f64]) -> Result<()> {
+        if q.len() != self.joints.len() {
+            return Err(DrError::JointCount {
+                expected: self.joints.len(),
+                got: q.len(),
+            });
+        }
+        for (j, v) in self.joints.iter().zip(q) {
+            if !v.is_finite() {
+                return Err(DrError::NonFiniteValue(j.name.clone()));
+            }
+        }
+        Ok(())
+    }
+
+    /// Forward kinematics: `root_T_tip` for joint values `q` (rad or m, chain order).
+    ///
+    /// Errors if `q` has the wrong length or a non-finite value. Limits are not enforced here
+    /// (see [`Chain::within_limits`]). Allocation-free.
+    pub fn fk(&self, q: &[f64]) -> Result<Isometry3<f64>> {
+        self.check(q)?;
+        Ok(self.fk_unchecked(q))
+    }
+
+    /// [`Chain::fk`] without the length and finiteness checks (extra values are ignored, missing
+    /// ones are taken as 0). For hot loops that validated `q` once.
+    #[inline]
+    pub fn fk_unchecked(&self, q: &[f64]) -> Isometry3<f64> {
+        let mut t = Isometry3::identity();
+        for (i, j) in self.joints.iter().enumerate() {
+            let v = q.get(i).copied().unwrap_or(0.0);
+            t = t * j.pre * joint_motion(j.kind, &j.axis, v);
+        }
+        t * self.tail
+    }
+
+    /// Whether every value of `q` is within its joint's position limits.
+    pub fn within_limits(&self, q: &[f64]) -> bool {
+        q.len() == self.joints.len()
+            && self
+                .joints
+                .iter()
+                .zip(q)
+                .all(|(j, v)| j.limits.contains(*v))
+    }
+
+    /// Geometric Jacobian (6 x dof, linear rows then angular rows, root frame) and `root_T_tip`.
+    pub fn jacobian(&self, q: &[f64]) -> Result<(Isometry3<f64>, Matrix6xX<f64>)> {
+        let mut jac = Matrix6xX::zeros(self.joints.len());
+        let tip = self.jacobian_into(q, &mut jac)?;
+        Ok((tip, jac))
+    }
+
+    /// [`Chain::jacobian`] into a caller-owned matrix (resized only if its column count differs),
+    /// for allocation-free IK loops. Returns `root_T_tip`.
+    pub fn jacobian_into(&self, q: &[f64], jac: &mut Matrix6xX<f64>) -> Result<Isometry3<f64>> {
+        self.check(q)?;
+        if jac.ncols() != self.joints.len() {
+            *jac = Matrix6xX::zeros(self.joints.len());
+        }
+        // First pass: tip position. Second pass: joint frames and columns.
+        let tip = self.fk_unchecked(q);
+        let p_tip = tip.translation.vector;
+        let mut t = Isometry3::identity();
+        for (i, j) in self.joints.iter().enumerate() {
+            t *= j.pre;
+            let z = t.rotation * j.axis.into_inner();
+            match j.kind {
+                JointKind::Revolute | JointKind::Continuous => {
+                    let lin = z.cross(&(p_tip - t.translation.vector));
+                    jac.fixed_view_mut::<3, 1>(0, i).copy_from(&lin);
+                    jac.fixed_view_mut::<3, 1>(3, i).copy_from(&z);
+                }
+                JointKind::Prismatic => {
+                    jac.fixed_view_mut::<3, 1>(0, i).copy_from(&z);
+                    jac.fixed_view_mut::<3, 1>(3, i).fill(0.0);
+                }
+                JointKind::Fixed => jac.column_mut(i).fill(0.0),
+            }
+            t *= joint_motion(j.kind, &j.axis, q[i]);
+        }
+        Ok(tip)
+    }
+
+    /// Upper bound of the distance from the first joint's origin to the tip, over all joint
+    /// values (m): the sum of the lengths of the fixed offsets after the first joint. Prismatic
+    /// joints add the larger magnitude of their limits. Used by the `reachable` predicate.
+    pub fn reach_m(&self) -> f64 {
+        let mut reach = 0.0;
+        for (i, j) in self.joints.iter().enumerate() {
+            if i > 0 {
+                reach += j.pre.translation.vector.norm();
+            }
+            if j.kind == JointKind::Prismatic {
+                reach += j.limits.lower.abs().max(j.limits.upper.abs());
+            }
+        }
+        reach + self.tail.translation.vector.norm()
+    }
+}
+
+/// A robot model: links, joints, cameras, loaded from URDF.
+#[derive(Debug, Clone)]
+pub struct RobotModel {
+    /// Robot name (the URDF `<robot name>`).
+    pub name: String,
+    /// Links; index 0 is not necessarily the root (see [`RobotModel::root`]).
+    pub links: Vec<LinkModel>,
+    /// Joints in URDF order.
+    pub joints: Vec<JointModel>,
+    /// Index of the root link.
+    pub root: usize,
+    /// Cameras declared with `<robocog_camera>` elements.
+    pub cameras: Vec<CameraIntrinsics>,
+    link_index: HashMap<String, usize>,
+    joint_index: HashMap<String, usize>,
+}
+
+fn pose_to_iso(p: &urdf_rs::Pose) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(p.xyz[0], p.xyz[1], p.xyz[2]),
+        UnitQuaternion::from_euler_angles(p.rpy[0], p.rpy[1], p.rpy[2]),
+    )
+}
+
+fn convert_geometry(g: &urdf_rs::Geometry) -> Shape {
+    match g {
+        urdf_rs::Geometry::Box { size } => Shape::Box { size_m: size.0 },
+        urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
+            radius_m: *radius,
+            length_m: *length,
+        },
+        urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
+            radius_m: *radius,
+            length_m: *length,
+        },
+        urdf_rs::Geometry::Sphere { radius } => Shape::Sphere { radius_m: *radius },
+        urdf_rs::Geometry::Mesh { filename, .. } => Shape::Mesh {
+            filename: filename.clone(),
+        },
+    }
+}
+
+/// The first XML syntax error of `text` with its `line:column` (1-based), if any.
+fn xml_syntax_error(text: &str) -> Option<String> {
+    for ev in xml::reader::EventReader::from_str(text) {
+        match ev {
+            Ok(xml::reader::XmlEvent::EndDocument) => return None,
+            Ok(_) => {}
+            Err(e) => return Some(e.to_string()),
+        }
+    }
+    None
+}
+
+/// Parses `key="value"` attributes of every `<robocog_camera .../>` element in raw URDF text.
+/// XML comments (`<!-- ... -->`) are skipped.
+fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
+    let mut uncommented = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(start) = rest.find("<!--") {
+        uncommented.push_str(&rest[..start]);
+        match rest[start..].find("-->") {
+            Some(end) => rest = &rest[start + end + 3..],
+            None => return Err(DrError::MalformedUrdf("unterminated XML comment".into())),
+        }
+    }
+    uncommented.push_str(rest);
+    let mut out = Vec::new();
+    let mut rest = uncommented.as_str();
+    while let Some(start) = rest.find("<robocog_camera") {
+        let after = &rest[start + "<robocog_camera".len()..];
+        let end = after.find('>').ok_or_else(|| {
+            DrError::MalformedUrdf("unterminated <robocog_camera> element".into())
+        })?;
+        let body = after[..end].trim_end_matches('/');
+        let mut attrs: HashMap<&str, &str> = HashMap::new();
+        let mut s = body;
+        while let Some(eq) = s.find('=') {
+            let key = s[..eq].trim();
+            let v = s[eq + 1..].trim_start();
+            let quote = v
+                .chars()
+                .next()
+                .filter(|c| *c == '"' || *c == '\'')
+                .ok_or_else(|| {
+                    DrError::MalformedUrdf(format!(
+                        "<robocog_camera>: attribute `{key}` is not quoted"
+                    ))
+                })?;
+            let v = &v[1..];
+            let close = v.find(quote).ok_or_else(|| {
+                DrError::MalformedUrdf(format!(
+                    "<robocog_camera>: attribute `{key}` is unterminated"
+                ))
+            })?;
+            attrs.insert(key, &v[..close]);
+            s = &v[close + 1..];
+        }
+        let get = |k: &str| {
+            attrs.get(k).copied().ok_or_else(|| {
+                DrError::InvalidModel(format!("<robocog_camera> is missing attribute `{k}`"))
+            })
+        };
+        let num = |k: &str| -> Result<f64> {
+            let v = get(k)?;
+            v.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| {
+                    DrError::InvalidModel(format!(
+                        "<robocog_camera> attribute `{k}`=`{v}` is not a number"
+                    ))
+                })
+        };
+        let int = |k: &str| -> Result<u32> {
+            let v = get(k)?;
+            v.trim().parse::<u32>().map_err(|_| {
+                DrError::InvalidModel(format!(
+                    "<robocog_camera> attribute `{k}`=`{v}` is not a size"
+                ))
+            })
+        };
+        out.push(CameraIntrinsics {
+            name: get("name")?.to_string(),
+            frame: get("frame")?.to_string(),
+            width: int("width")?,
+            height: int("height")?,
+            fx: num("fx")?,
+            fy: num("fy")?,
+            cx: num("cx")?,
+            cy: num("cy")?,
+            min_range_m: num("min_range_m")?,
+            max_range_m: num("max_range_m")?,
+        });
+        rest = &after[end..];
+    }
+    Ok(out)
+}
+
+impl RobotModel {
+    /// Loads a model from a URDF file.
+    pub fn from_urdf_file(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| DrError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_urdf_str(&text)
+    }
+
+    /// Loads a model from URDF text.
+    ///
+    /// Errors: [`DrError::MalformedUrdf`] if urdf-rs cannot parse it, [`DrError::InvalidModel`] if
+    /// it is not a single tree of known links with supported joints.
+    pub fn from_urdf_str(text: &str) -> Result<Self> {
+        let robot = urdf_rs::read_from_string(text).map_err(|e| match xml_syntax_error(text) {
+            Some(xml) => DrError::MalformedUrdf(format!("XML error at {xml} ({e})")),
+            None => DrError::MalformedUrdf(e.to_string()),
+        })?;
+        let mut links = Vec::with_capacity(robot.links.len());
+        let mut link_index = HashMap::new();
+        for l in &robot.links {
+            if link_index.insert(l.name.clone(), links.len()).is_some() {
+                return Err(DrError::InvalidModel(format!(
+                    "duplicate link `{}`",
+                    l.name
+                )));
+            }
+            links.push(LinkModel {
+                name: l.name.clone(),
+                parent_joint: None,
+                collision: l
+                    .collision
+                    .iter()
+                    .map(|c| CollisionShape {
+                        origin: pose_to_iso(&c.origin),
+                        shape: convert_geometry(&c.geometry),
+                    })
+                    .collect(),
+            });
+        }
+        if links.is_empty() {
+            return Err(DrError::InvalidModel("the robot has no links".into()));
+        }
+        let mut joints = Vec::with_capacity(robot.joints.len());
+        let mut joint_index = HashMap::new();
+        for j in &robot.joints {
+            let kind = match j.joint_type {
+                urdf_rs::JointType::Revolute => JointKind::Revolute,
+                urdf_rs::JointType::Continuous => JointKind::Continuous,
+                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+                urdf_rs::JointType::Fixed => JointKind::Fixed,
+                ref other => {
+                    return Err(DrError::InvalidModel(format!(
+                        "joint `{}`: unsupported type {other:?}",
+                        j.name
+                    )));
+                }
+            };
+            let find = |name: &str, role: &str| {
+                link_index.get(name).copied().ok_or_else(|| {
+                    DrError::InvalidModel(format!(
+                        "joint `{}`: {role} link `{name}` is not declared",
+                        j.name
+                    ))
+                })
+            };
+            let parent = find(&j.parent.link, "parent")?;
+            let child = find(&j.child.link, "child")?;
+            let axis_v = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+            let axis = if kind.is_movable() {
+                Unit::try_new(axis_v, 1e-12).ok_or_else(|| {
+                    DrError::InvalidModel(format!("joint `{}`: zero axis", j.name))
+                })?
+            } else {
+                Vector3::x_axis()
+            };
+            let limits = match kind {
+                JointKind::Revolute | JointKind::Prismatic => {
+                    let l = &j.limit;
+                    let ordered = l.lower <= l.upper && l.velocity > 0.0;
+                    if !ordered {
+                        return Err(DrError::InvalidModel(format!(
+                            "joint `{}`: limits need lower <= upper and velocity > 0 (got {}..{}, {})",
+                            j.name, l.lower, l.upper, l.velocity
+                        )));
+                    }
+                    JointLimits {
+                        lower: l.lower,
+                        upper: l.upper,
+                        velocity: l.velocity,
+                        effort: l.effort,
+                    }
+                }
+                JointKind::Continuous => JointLimits {
+                    lower: f64::NEG_INFINITY,
+                    upper: f64::INFINITY,
+                    velocity: if j.limit.velocity > 0.0 {
+                        j.limit.velocity
+                    } else {
+                        f64::INFINITY
+                    },
+                    effort: j.limit.effort,
+                },
+                JointKind::Fixed => JointLimits {
+                    lower: 0.0,
+                    upper: 0.0,
+                    velocity: 0.0,
+                    effort: 0.0,
+                },
+            };
+            if links[child].parent_joint.is_some() {
+                return Err(DrError::InvalidModel(format!(
+                    "link `{}` has two parent joints",
+                    j.child.link
+                )));
+            }
+            links[child].parent_joint = Some(joints.len());
+            if joint_index.insert(j.name.clone(), joints.len()).is_some() {
+                return Err(DrError::InvalidModel(format!(
+                    "duplicate joint `{}`",
+                    j.name
+                )));
+            }
+            joints.push(JointModel {
+                name: j.name.clone(),
+                kind,
+                parent,
+                child,
+                origin: pose_to_iso(&j.origin),
+                axis,
+                limits,
+            });
+        }
+        let roots: Vec<usize> = (0..links.len())
+            .filter(|i| links[*i].parent_joint.is_none())
+            .collect();
+        let root = match roots.as_slice() {
+            [r] => *r,
+            [] => {
+                return Err(DrError::InvalidModel(
+                    "no root link (the joints form a cycle)".into(),
+                ));
+            }
+            many => {
+                return Err(DrError::InvalidModel(format!(
+                    "{} root links ({}); a robot must be one tree",
+                    many.len(),
+                    many.iter()
+                        .map(|i| links[*i].name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            }
+        };
+        // Every link must reach the root (detects cycles disconnected from the root).
+        for start in 0..links.len() {
+            let mut cur = start;
+            let mut steps = 0;
+            while let Some(j) = links[cur].parent_joint {
+                cur = joints[j].parent;
+                steps += 1;
+                if steps > links.len() {
+                    return Err(DrError::InvalidModel(format!(
+                        "link `{}` is in a cycle of joints",
+                        links[start].name
+                    )));
+                }
+            }
+        }
+        let cameras = parse_cameras(text)?;
+        for c in &cameras {
+            if !link_index.contains_key(&c.frame) {
+                return Err(DrError::InvalidModel(format!(
+                    "camera `{}`: frame `{}` is not a link",
+                    c.name, c.frame
+                )));
+            }
+        }
+        Ok(Self {
+            name: robot.name,
+            links,
+            joints,
+            root,
+            cameras,
+            link_index,
+            joint_index,
+        })
+    }
+
+    /// The root link.
+    pub fn root_link(&self) -> &LinkModel {
+        &self.links[self.root]
+    }
+
+    /// Index of a link by name.
+    pub fn link_index(&self, name: &str) -> Result<usize> {
+        self.link_index
+            .get(name)
+            .copied()
+            .ok_or_else(|| DrError::UnknownFrame(name.to_string()))
+    }
+
+    /// A link by name.
+    pub fn link(&self, name: &str) -> Result<&LinkModel> {
+        Ok(&self.links[self.link_index(name)?])
+    }
+
+    /// A joint by name.
+    pub fn joint(&self, name: &str) -> Result<&JointModel> {
+        self.joint_index
+            .get(name)
+            .map(|i| &self.joints[*i])
+            .ok_or_else(|| DrError::UnknownJoint(name.to_string()))
+    }
+
+    /// Names of the movable joints, in URDF order.
+    pub fn movable_joint_names(&self) -> Vec<&str> {
+        self.joints
+            .iter()
+            .filter(|j| j.kind.is_movable())
+            .map(|j| j.name.as_str())
+            .collect()
+    }
+
+    /// A camera by name.
+    pub fn camera(&self, name: &str) -> Option<&CameraIntrinsics> {
+        self.cameras.iter().find(|c| c.name == name)
+    }
+
+    /// The chain from link `root` down to link `tip`.
+    ///
+    /// Errors: unknown link names ([`DrError::UnknownFrame`]), or `root` not an ancestor of `tip`
+    /// ([`DrError::NotAChain`]). `root == tip` gives an empty chain (identity).
+    pub fn chain(&self, root: &str, tip: &str) -> Result<Chain> {
+        let r = self.link_index(root)?;
+        let t = self.link_index(tip)?;
+        let mut path = Vec::new();
+        let mut cur = t;
+        while cur != r {
+            match self.links[cur].parent_joint {
+                Some(j) => {
+                    path.push(j);
+                    cur = self.joints[j].parent;
+                }
+                None => {
+                    return Err(DrError::NotAChain {
+                        root: root.into(),
+                        tip: tip.into(),
+                    });
+                }
+            }
+        }
+        path.reverse();
+        let mut joints = Vec::new();
+        let mut acc = Isometry3::identity();
+        for j in path {
+            let jm = &self.joints[j];
+            acc *= jm.origin;
+            if jm.kind.is_movable() {
+                joints.push(ChainJoint {
+                    name: jm.name.clone(),
+                    kind: jm.kind,
+                    pre: acc,
+                    axis: jm.axis,
+                    limits: jm.limits,
+                });
+                acc = Isometry3::identity();
+            }
+        }
+        Ok(Chain {
+            root: root.into(),
+            tip: tip.into(),
+            joints,
+            tail: acc,
+        })
+    }
+
+    /// The chain of a named body part (see [`BODY_PARTS`]).
+    pub fn body_part(&self, name: &str) -> Result<Chain> {
+        let part = BodyPart::find(name)?;
+        self.chain(part.root, part.tip)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn loki() -> RobotModel {
+        RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf"))
+            .unwrap()
+    }
+
+    #[test]
+    fn loki_has_31_movable_joints_and_collision_everywhere() {
+        let m = loki();
+        assert_eq!(m.name, "loki");
+        assert_eq!(m.movable_joint_names().len(), 31);
+        assert_eq!(m.root_link().name, "base_footprint");
+        for l in &m.links {
+            assert!(!l.collision.is_empty(), "link {} has no collision", l.name);
+        }
+        for j in m.joints.iter().filter(|j| j.kind.is_movable()) {
+            assert!(
+                j.limits.velocity > 0.0 && j.limits.lower < j.limits.upper,
+                "{}",
+                j.name
+            );
+        }
+    }
+
+    #[test]
+    fn body_parts_have_documented_dof() {
+        let m = loki();
+        for part in BODY_PARTS {
+            let c = m.body_part(part.name).unwrap();
+            assert_eq!(c.dof(), part.dof, "{}", part.name);
+        }
+        let c = m.body_part("left_arm_13").unwrap();
+        assert_eq!(c.joint_names()[..2], ["base_yaw", "base_forward"]);
+        assert_eq!(c.joint_names()[12], "left_finger_distal_joint");
+    }
+
+    #[test]
+    fn camera_intrinsics_are_read_from_custom_element() {
+        let m = loki();
+        let c = m.camera("head_rgbd").unwrap();
+        assert_eq!((c.width, c.height), (640, 480));
+        assert_eq!((c.fx, c.fy, c.cx, c.cy), (525.0, 525.0, 319.5, 239.5));
+        assert_eq!(c.frame, "head_rgbd_optical_frame");
+        // A point 1 m straight ahead projects onto the principal point.
+        assert_eq!(
+            c.project(&Vector3::new(0.0, 0.0, 1.0)),
+            Some((319.5, 239.5))
+        );
+        assert!(c.sees(&Vector3::new(0.0, 0.0, 1.0)));
+        assert!(
+            !c.sees(&Vector3::new(0.0, 0.0, 0.2)),
+            "closer than min range"
+        );
+        assert!(
+            !c.sees(&Vector3::new(1.0, 0.0, 1.0)),
+            "u = 844.5 is outside 640 px"
+        );
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences() {
+        let m = loki();
+        for part in ["left_arm_13", "neck", "right_arm_7"] {
+            let c = m.body_part(part).unwrap();
+            let q: Vec<f64> = (0..c.dof()).map(|i| 0.1 + 0.07 * i as f64).collect();
+            let (tip, jac) = c.jacobian(&q).unwrap();
+            let h = 1e-6;
+            for i in 0..c.dof() {
+                let mut qp = q.clone();
+                qp[i] += h;
+                let tp = c.fk(&qp).unwrap();
+                let dp = (tp.translation.vector - tip.translation.vector) / h;
+                let dr = (tp.rotation * tip.rotation.inverse()).scaled_axis() / h;
+                for k in 0..3 {
+                    assert!((jac[(k, i)] - dp[k]).abs() < 1e-5, "{part} lin col {i}");
+                    assert!((jac[(k + 3, i)] - dr[k]).abs() < 1e-5, "{part} ang col {i}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bad_inputs_give_typed_errors() {
+        let m = loki();
+        assert!(
+            matches!(m.chain("torso", "no_such_link"), Err(DrError::UnknownFrame(n)) if n == "no_such_link")
+        );
+        assert!(matches!(
+            m.chain("left_hand", "torso"),
+            Err(DrError::NotAChain { .. })
+        ));
+        assert!(matches!(
+            m.joint("left_knee"),
+            Err(DrError::UnknownJoint(_))
+        ));
+        assert!(matches!(
+            m.body_part("tail"),
+            Err(DrError::UnknownBodyPart(..))
+        ));
+        let c = m.body_part("left_arm_4").unwrap();
+        assert!(matches!(
+            c.fk(&[0.0; 3]),
+            Err(DrError::JointCount {
+                expected: 4,
+                got: 3
+            })
+        ));
+        assert!(matches!(
+            c.fk(&[0.0, f64::NAN, 0.0, 0.0]),
+            Err(DrError::NonFiniteValue(_))
+        ));
+    }
+
+    #[test]
+    fn malformed_and_invalid_urdf_are_rejected() {
+        let e = RobotModel::from_urdf_str("<robot name='x'>\n<link name='a'>").unwrap_err();
+        assert!(matches!(e, DrError::MalformedUrdf(_)), "{e}");
+        assert!(e.to_string().contains("XML error at 2:"), "{e}");
+        let e = RobotModel::from_urdf_str("<robot name='x'><link name='a'/></robt>").unwrap_err();
+        assert!(e.to_string().contains("XML error at 1:"), "{e}");
+        // Well-formed XML that is not a valid URDF: urdf-rs's own message.
+        let e =
+            RobotModel::from_urdf_str("<robot name='x'><joint name='j' type='revolute'/></robot>")
+                .unwrap_err();
+        assert!(
+            matches!(e, DrError::MalformedUrdf(ref s) if !s.contains("XML error")),
+            "{e}"
+        );
+        let e = RobotModel::from_urdf_str("not xml at all").unwrap_err();
+        assert!(matches!(e, DrError::MalformedUrdf(_)), "{e}");
+        let dangling = r#"<robot name="x"><link name="a"/>
+            <joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>"#;
+        let e = RobotModel::from_urdf_str(dangling).unwrap_err();
+        assert!(
+            matches!(e, DrError::InvalidModel(ref s) if s.contains("`b`")),
+            "{e}"
+        );
+        let two_roots = r#"<robot name="x"><link name="a"/><link name="b"/></robot>"#;
+        assert!(matches!(
+            RobotModel::from_urdf_str(two_roots),
+            Err(DrError::InvalidModel(_))
+        ));
+        let bad_limits = r#"<robot name="x"><link name="a"/><link name="b"/>
+            <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+            <limit lower="1" upper="-1" velocity="1" effort="1"/></joint></robot>"#;
+        assert!(matches!(
+            RobotModel::from_urdf_str(bad_limits),
+            Err(DrError::InvalidModel(_))
+        ));
+        let bad_cam = r#"<robot name="x"><link name="a"/>
+            <robocog_camera name="c" frame="nowhere" width="640" height="480" fx="1" fy="1" cx="0" cy="0" min_range_m="0" max_range_m="1"/></robot>"#;
+        assert!(matches!(
+            RobotModel::from_urdf_str(bad_cam),
+            Err(DrError::InvalidModel(_))
+        ));
+        let missing = RobotModel::from_urdf_file("/nonexistent/robot.urdf").unwrap_err();
+        assert!(matches!(missing, DrError::Io { .. }));
+    }
+}

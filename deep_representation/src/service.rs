@@ -1,0 +1,913 @@
+//! The `deep_representation` component: the scene graph served over the bus.
+//!
+//! One live [`SceneGraph`] per process, behind a read-write lock: queries (node, transform,
+//! predicate, fork, PDDL, snapshot) share it, changes (update, propose, restore) take it alone.
+//!
+//! | service (`interfaces::topics`) | does |
+//! |---|---|
+//! | `dr/get_node` | one node: type, parent, children, edge, pose, attributes, full spec as JSON |
+//! | `dr/transform` | `target_T_source`, latest or at a past time (interpolated from the edge histories) |
+//! | `dr/update` | attributes, free poses, joint values, straight in; the batch is checked first and applied whole or not at all |
+//! | `dr/propose` | a structural change; accepted or rejected with the integrity rule that refused it |
+//! | `dr/predicate` | whether a predicate holds, or every fact that holds |
+//! | `dr/fork` | virtual actions on a private copy; predicate changes, joints changed, items moved (the live graph untouched) |
+//! | `dr/pddl` | the state as a PDDL problem text |
+//! | `dr/snapshot`, `dr/restore` | the state as snapshot JSON; replace the state with one |
+//!
+//! Every accepted change is published on `dr/changes` (in order, with a sequence number that
+//! continues across restarts) and, with a state folder, appended to its change log before the
+//! reply leaves (see [`crate::persist`]).
+//!
+//! Errors: an unknown node, frame or joint is a `NotFound` [`ServiceError`]; a malformed request
+//! (bad JSON, a non-finite number, a wrong argument count, a negative stamp) is `BadRequest`; a
+//! rejected proposal is a normal reply. Time: the stamp of a change is the request's
+//! `header.stamp_ns`, or now on the bus clock when it is 0.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use interfaces::msg::dr as m;
+use interfaces::node::Interface;
+use interfaces::{Bus, ServiceError, Shutdown, topics};
+use tokio::sync::{RwLock, mpsc};
+
+use crate::error::DrError;
+use crate::field::FieldModel;
+use crate::graph::{At, EdgeKind, RejectReason, SceneGraph};
+use crate::kinematics::RobotModel;
+use crate::pddl::{Atom, export_problem};
+use crate::persist::{LogLine, RecoveryReport, Store, StoreOptions};
+use crate::predicates::{self, PredicateConfig, PredicateKind, fork_report};
+use crate::types::{self, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Proposal, Stamp};
+use crate::{scenes, types::Pose};
+
+/// The start scene used when the state folder holds no state (or there is none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Scene {
+    /// Loki, the player and the ball ([`scenes::touch_the_ball`]); needs the URDF.
+    Touch,
+    /// The SPL field, four robots, the ball, the coach ([`scenes::coach_game`]); needs the field.
+    Coach,
+    /// Only `world`.
+    Empty,
+}
+
+/// How the service runs.
+#[derive(Debug, Clone)]
+pub struct ServiceConfig {
+    /// State folder (snapshot + change log); `None`: in memory only.
+    pub state_dir: Option<PathBuf>,
+    /// Start scene.
+    pub scene: Scene,
+    /// The robot's URDF (for [`Scene::Touch`]).
+    pub urdf: PathBuf,
+    /// The SPL field model (for [`Scene::Coach`]).
+    pub field: PathBuf,
+    /// Persistence options.
+    pub store: StoreOptions,
+    /// Predicate thresholds.
+    pub predicates: PredicateConfig,
+    /// Samples kept per edge.
+    pub history_len: usize,
+}
+
+impl ServiceConfig {
+    /// A config for `scene` with the repository's models (found as [`find_model`] does), in
+    /// memory.
+    pub fn new(scene: Scene) -> Self {
+        Self {
+            state_dir: None,
+            scene,
+            urdf: find_model(None, "loki.urdf"),
+            field: find_model(None, "spl_field.toml"),
+            store: StoreOptions::default(),
+            predicates: PredicateConfig::default(),
+            history_len: SceneGraph::DEFAULT_HISTORY_LEN,
+        }
+    }
+
+    /// The start scene.
+    pub fn start_scene(&self) -> crate::Result<SceneGraph> {
+        match self.scene {
+            Scene::Touch => {
+                let loki = RobotModel::from_urdf_file(&self.urdf)?;
+                scenes::touch_the_ball(&loki, Stamp(0))
+            }
+            Scene::Coach => {
+                let field = FieldModel::from_file(&self.field)?;
+                scenes::coach_game(&field, Stamp(0))
+            }
+            Scene::Empty => Ok(SceneGraph::new()),
+        }
+    }
+}
+
+/// Where a model file is: `explicit` if given; else the first `models/<file>` found walking up
+/// from the executable's folder, then from the working folder; else the repository's
+/// `models/<file>` as seen at build time (which may not exist on another machine: loading it then
+/// fails with the path).
+pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
+    if let Some(p) = explicit {
+        return p.to_path_buf();
+    }
+    let starts = [
+        std::env::current_exe()
+            .ok()
+            .and_then(|e| e.parent().map(Path::to_path_buf)),
+        std::env::current_dir().ok(),
+    ];
+    for start in starts.into_iter().flatten() {
+        for dir in start.ancestors() {
+            let p = dir.join("models").join(file);
+            if p.is_file() {
+                return p;
+            }
+        }
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("models")
+        .join(file)
+}
+
+/// The component's interface (what `--describe` prints).
+pub fn interface() -> Interface {
+    Interface::new("deep_representation")
+        .publishes(&topics::DR_CHANGES)
+        .serves(&topics::DR_GET_NODE)
+        .serves(&topics::DR_TRANSFORM)
+        .serves(&topics::DR_UPDATE)
+        .serves(&topics::DR_PROPOSE)
+        .serves(&topics::DR_PREDICATE)
+        .serves(&topics::DR_FORK)
+        .serves(&topics::DR_PDDL)
+        .serves(&topics::DR_SNAPSHOT)
+        .serves(&topics::DR_RESTORE)
+}
+
+// ---------------------------------------------------------------- conversions
+
+fn dr_err(e: DrError) -> ServiceError {
+    match e {
+        DrError::UnknownFrame(_) | DrError::UnknownJoint(_) | DrError::UnknownBodyPart(..) => {
+            ServiceError::not_found(e.to_string())
+        }
+        DrError::TimeOutOfHistory { .. } => ServiceError::not_found(e.to_string()),
+        DrError::Io { .. } => ServiceError::new(interfaces::ErrorCode::Internal, e.to_string()),
+        _ => ServiceError::bad_request(e.to_string()),
+    }
+}
+
+fn internal(what: impl std::fmt::Display) -> ServiceError {
+    ServiceError::new(interfaces::ErrorCode::Internal, what.to_string())
+}
+
+/// A bus attribute value as the library's.
+pub fn attr_from_msg(v: &m::AttrValue) -> types::AttrValue {
+    match v {
+        m::AttrValue::Bool(b) => types::AttrValue::Bool(*b),
+        m::AttrValue::Int(i) => types::AttrValue::Int(*i),
+        m::AttrValue::Float(f) => types::AttrValue::Float(*f),
+        m::AttrValue::Text(t) => types::AttrValue::Text(t.clone()),
+        m::AttrValue::Vec3(v) => types::AttrValue::Vec3(*v),
+    }
+}
+
+/// A library attribute value as the bus'.
+pub fn attr_to_msg(v: &types::AttrValue) -> m::AttrValue {
+    match v {
+        types::AttrValue::Bool(b) => m::AttrValue::Bool(*b),
+        types::AttrValue::Int(i) => m::AttrValue::Int(*i),
+        types::AttrValue::Float(f) => m::AttrValue::Float(*f),
+        types::AttrValue::Text(t) => m::AttrValue::Text(t.clone()),
+        types::AttrValue::Vec3(v) => m::AttrValue::Vec3(*v),
+    }
+}
+
+fn attr_checked(a: &m::Attribute) -> Result<types::AttrValue, ServiceError> {
+    if a.key.is_empty() {
+        return Err(ServiceError::bad_request(format!(
+            "attribute of `{}`: empty key",
+            a.node
+        )));
+    }
+    let finite = match &a.value {
+        m::AttrValue::Float(f) => f.is_finite(),
+        m::AttrValue::Vec3(v) => v.iter().all(|x| x.is_finite()),
+        _ => true,
+    };
+    if !finite {
+        return Err(ServiceError::bad_request(format!(
+            "attribute `{}.{}`: value is not finite",
+            a.node, a.key
+        )));
+    }
+    Ok(attr_from_msg(&a.value))
+}
+
+/// A bus transform as the library's pose.
+pub fn pose_from_msg(t: &m::Transform) -> Pose {
+    Pose {
+        translation_m: t.translation_m,
+        rotation_xyzw: t.rotation_xyzw,
+    }
+}
+
+fn pose_checked(what: &str, t: &m::Transform) -> Result<Pose, ServiceError> {
+    let p = pose_from_msg(t);
+    if p.is_valid() {
+        Ok(p)
+    } else {
+        Err(ServiceError::bad_request(format!(
+            "pose of `{what}`: not finite, or a zero quaternion"
+        )))
+    }
+}
+
+/// A nalgebra isometry as a bus transform.
+pub fn transform_to_msg(iso: &nalgebra::Isometry3<f64>) -> m::Transform {
+    let p = Pose::from_iso(iso);
+    m::Transform {
+        translation_m: p.translation_m,
+        rotation_xyzw: p.rotation_xyzw,
+    }
+}
+
+/// The snake_case code of a rejection reason.
+pub fn reason_code(r: &RejectReason) -> &'static str {
+    match r {
+        RejectReason::DuplicateName(_) => "duplicate_name",
+        RejectReason::InvalidName(_) => "invalid_name",
+        RejectReason::UnknownParent(_) => "unknown_parent",
+        RejectReason::UnknownNode(_) => "unknown_node",
+        RejectReason::UnknownType(..) => "unknown_type",
+        RejectReason::Cycle { .. } => "cycle",
+        RejectReason::HasChildren(..) => "has_children",
+        RejectReason::Protected(..) => "protected",
+        RejectReason::InvalidGeometry(_) => "invalid_geometry",
+        RejectReason::DuplicateJoint(_) => "duplicate_joint",
+    }
+}
+
+/// A bus structural change as a library proposal (`BadRequest` for unreadable `spec_json`).
+pub fn proposal_from_msg(c: &m::StructuralChange) -> Result<Proposal, ServiceError> {
+    Ok(match c.kind {
+        m::ChangeKind::AddNode if !c.spec_json.is_empty() => {
+            let spec: NodeSpec = serde_json::from_str(&c.spec_json).map_err(|e| {
+                ServiceError::bad_request(format!("spec_json is not a node spec: {e}"))
+            })?;
+            Proposal::add(spec)
+        }
+        m::ChangeKind::AddNode => {
+            let pose = pose_from_msg(&c.pose);
+            let mut spec = NodeSpec {
+                name: c.name.clone(),
+                node_type: c.node_type.clone(),
+                parent: c.parent.clone(),
+                edge: if c.fixed {
+                    EdgeSpec::Fixed { origin: pose }
+                } else {
+                    EdgeSpec::Free { pose }
+                },
+                attrs: Default::default(),
+                camera: None,
+                collision: Vec::new(),
+            };
+            for a in &c.attributes {
+                spec.attrs.insert(a.key.clone(), attr_checked(a)?);
+            }
+            Proposal::add(spec)
+        }
+        m::ChangeKind::RemoveNode => Proposal::RemoveNode {
+            name: c.name.clone(),
+        },
+        m::ChangeKind::Reparent => Proposal::Reparent {
+            name: c.name.clone(),
+            new_parent: c.parent.clone(),
+            pose: pose_from_msg(&c.pose),
+        },
+    })
+}
+
+fn fact_to_msg(f: &predicates::Fact) -> m::Fact {
+    m::Fact {
+        predicate: f.kind.name().into(),
+        args: f.args.clone(),
+    }
+}
+
+fn event_summary(e: &ChangeEvent) -> (&'static str, String, Stamp) {
+    match e {
+        ChangeEvent::NodeAdded { stamp, spec } => ("node_added", spec.name.clone(), *stamp),
+        ChangeEvent::NodeRemoved { stamp, name } => ("node_removed", name.clone(), *stamp),
+        ChangeEvent::Reparented { stamp, name, .. } => ("reparented", name.clone(), *stamp),
+        ChangeEvent::JointSet { stamp, joint, .. } => ("joint_set", joint.clone(), *stamp),
+        ChangeEvent::PoseSet { stamp, node, .. } => ("pose_set", node.clone(), *stamp),
+        ChangeEvent::AttributeSet { stamp, node, .. } => ("attribute_set", node.clone(), *stamp),
+        ChangeEvent::BodyPartDeclared { stamp, part } => {
+            ("body_part_declared", part.name.clone(), *stamp)
+        }
+    }
+}
+
+// ---------------------------------------------------------------- the live state
+
+struct Live {
+    graph: SceneGraph,
+    store: Option<Store>,
+    last_seq: u64,
+}
+
+/// The state shared by the service handlers.
+pub struct Dr {
+    live: RwLock<Live>,
+    changes: mpsc::Sender<m::DrChange>,
+    predicates: PredicateConfig,
+    history_len: usize,
+    bus: Bus,
+}
+
+impl std::fmt::Debug for Dr {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Dr")
+    }
+}
+
+impl Dr {
+    fn stamp(&self, header: &interfaces::Header) -> Result<Stamp, ServiceError> {
+        match header.stamp_ns {
+            t if t < 0 => Err(ServiceError::bad_request(format!(
+                "header.stamp_ns {t} is negative"
+            ))),
+            0 => Ok(Stamp(self.bus.clock().now_ns().max(0) as u64)),
+            t => Ok(Stamp(t as u64)),
+        }
+    }
+
+    /// Persists and publishes the graph's pending change events; returns the last sequence
+    /// number. Called with the write lock held, so changes leave in order.
+    async fn commit(&self, live: &mut Live) -> Result<u64, ServiceError> {
+        let events = live.graph.take_log();
+        if events.is_empty() {
+            return Ok(live.last_seq);
+        }
+        let mut lines = Vec::with_capacity(events.len());
+        for event in events {
+            live.last_seq += 1;
+            lines.push(LogLine {
+                seq: live.last_seq,
+                event: Some(event),
+                restore: None,
+            });
+        }
+        self.persist(live, &lines)?;
+        for l in &lines {
+            let Some(ev) = &l.event else { continue };
+            let (kind, node, stamp) = event_summary(ev);
+            let mut msg = m::DrChange {
+                header: interfaces::Header::new("world"),
+                seq: l.seq,
+                kind: kind.into(),
+                node,
+                event_json: serde_json::to_string(ev).unwrap_or_default(),
+            };
+            msg.header.stamp_ns = stamp.0.min(i64::MAX as u64) as i64;
+            if self.changes.send(msg).await.is_err() {
+                self.bus.counters().incr("dr/changes_not_published");
+            }
+        }
+        Ok(live.last_seq)
+    }
+
+    fn persist(&self, live: &mut Live, lines: &[LogLine]) -> Result<(), ServiceError> {
+        let Some(store) = live.store.as_mut() else {
+            return Ok(());
+        };
+        if let Err(e) = store.append(lines) {
+            self.bus.counters().incr("dr/persist_errors");
+            tracing::error!("change applied but NOT persisted: {e}");
+            return Err(internal(format!("the change was applied but not persisted: {e}")));
+        }
+        if store.compaction_due() {
+            match store.compact(&live.graph, live.last_seq) {
+                Ok(()) => tracing::debug!(seq = live.last_seq, "compacted the state folder"),
+                Err(e) => {
+                    // The log still holds every change; compaction is retried on the next one.
+                    self.bus.counters().incr("dr/compaction_errors");
+                    tracing::warn!("compaction failed (the change log keeps growing): {e}");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    // ------------------------------------------------------------ handlers
+
+    /// `dr/get_node`.
+    pub async fn get_node(&self, req: m::GetNodeRequest) -> Result<m::NodeInfo, ServiceError> {
+        let live = self.live.read().await;
+        let g = &live.graph;
+        let n = g.node(&req.name).map_err(dr_err)?;
+        let parent = n
+            .parent
+            .and_then(|p| g.node_by_id(p))
+            .map(|p| p.name.clone())
+            .unwrap_or_default();
+        let (edge, joint) = match (&n.edge.kind, n.parent) {
+            (_, None) => ("", String::new()),
+            (EdgeKind::Fixed, _) => ("fixed", String::new()),
+            (EdgeKind::Free, _) => ("free", String::new()),
+            (EdgeKind::Joint { joint, .. }, _) => ("joint", joint.clone()),
+        };
+        let spec_json = match g.node_spec(&req.name) {
+            Ok(spec) => serde_json::to_string(&spec).map_err(internal)?,
+            Err(_) => String::new(),
+        };
+        Ok(m::NodeInfo {
+            header: interfaces::Header::new(parent.clone()),
+            name: n.name.clone(),
+            node_type: n.node_type.name().into(),
+            parent,
+            children: n
+                .children
+                .iter()
+                .filter_map(|c| g.node_by_id(*c).map(|c| c.name.clone()))
+                .collect(),
+            edge: edge.into(),
+            joint_value: if joint.is_empty() { 0.0 } else { n.edge.value() },
+            joint,
+            pose: transform_to_msg(n.edge.current()),
+            attributes: n
+                .attrs
+                .iter()
+                .map(|(k, v)| m::Attribute {
+                    node: n.name.clone(),
+                    key: k.clone(),
+                    value: attr_to_msg(v),
+                })
+                .collect(),
+            spec_json,
+        })
+    }
+
+    /// `dr/transform`.
+    pub async fn transform(
+        &self,
+        req: m::TransformRequest,
+    ) -> Result<m::TransformReply, ServiceError> {
+        let live = self.live.read().await;
+        let g = &live.graph;
+        let at = match req.stamp_ns {
+            0 => At::Latest,
+            t => At::Time(Stamp(t)),
+        };
+        let iso = g.transform(&req.target, &req.source, at).map_err(dr_err)?;
+        let stamp_ns = match at {
+            At::Latest => g.newest_stamp().0,
+            At::Time(t) => t.0,
+        };
+        let mut header = interfaces::Header::new(req.target.clone());
+        header.stamp_ns = stamp_ns.min(i64::MAX as u64) as i64;
+        Ok(m::TransformReply {
+            header,
+            target: req.target,
+            source: req.source,
+            stamp_ns,
+            transform: transform_to_msg(&iso),
+        })
+    }
+
+    fn check_updates(
+        g: &SceneGraph,
+        attributes: &[m::Attribute],
+        poses: &[m::PoseUpdate],
+        joints: &[m::JointUpdate],
+    ) -> Result<(), ServiceError> {
+        for a in attributes {
+            g.node(&a.node).map_err(dr_err)?;
+            attr_checked(a)?;
+        }
+        for p in poses {
+            let n = g.node(&p.node).map_err(dr_err)?;
+            if !matches!(n.edge.kind, EdgeKind::Free) || n.parent.is_none() {
+                return Err(ServiceError::bad_request(format!(
+                    "`{}` has no free pose (its edge is fixed or a joint)",
+                    p.node
+                )));
+            }
+            pose_checked(&p.node, &p.pose)?;
+        }
+        for j in joints {
+            g.joint_node(&j.joint).map_err(dr_err)?;
+            if !j.value.is_finite() {
+                return Err(ServiceError::bad_request(format!(
+                    "joint `{}`: value is not finite",
+                    j.joint
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn apply_updates(
+        g: &mut SceneGraph,
+        attributes: &[m::Attribute],
+        poses: &[m::PoseUpdate],
+        joints: &[m::JointUpdate],
+        stamp: Stamp,
+    ) -> crate::Result<()> {
+        for j in joints {
+            g.set_joint(&j.joint, j.value, stamp)?;
+        }
+        for p in poses {
+            g.set_pose(&p.node, &pose_from_msg(&p.pose).to_iso(), stamp)?;
+        }
+        for a in attributes {
+            g.set_attr(&a.node, &a.key, attr_from_msg(&a.value), stamp)?;
+        }
+        Ok(())
+    }
+
+    /// `dr/update`.
+    pub async fn update(&self, req: m::UpdateRequest) -> Result<m::UpdateReply, ServiceError> {
+        let stamp = self.stamp(&req.header)?;
+        let mut live = self.live.write().await;
+        Self::check_updates(&live.graph, &req.attributes, &req.poses, &req.joints)?;
+        let applied = Self::apply_updates(
+            &mut live.graph,
+            &req.attributes,
+            &req.poses,
+            &req.joints,
+            stamp,
+        );
+        // The checks above make a failure here a bug; what was applied is still committed.
+        let last_seq = self.commit(&mut live).await?;
+        applied.map_err(|e| internal(format!("update partly applied: {e}")))?;
+        Ok(m::UpdateReply {
+            header: Default::default(),
+            applied: (req.attributes.len() + req.poses.len() + req.joints.len()) as u32,
+            last_seq,
+        })
+    }
+
+    /// `dr/propose`.
+    pub async fn propose(&self, req: m::ProposeRequest) -> Result<m::ProposeReply, ServiceError> {
+        let stamp = self.stamp(&req.header)?;
+        let proposal = proposal_from_msg(&req.change)?;
+        let mut live = self.live.write().await;
+        match live.graph.propose(proposal, stamp) {
+            Ok(()) => {
+                let seq = self.commit(&mut live).await?;
+                Ok(m::ProposeReply {
+                    accepted: true,
+                    seq,
+                    ..Default::default()
+                })
+            }
+            Err(rejection) => {
+                self.bus.counters().incr("dr/proposals_rejected");
+                tracing::info!("rejected a proposal: {}", rejection.reason);
+                Ok(m::ProposeReply {
+                    accepted: false,
+                    reason_code: reason_code(&rejection.reason).into(),
+                    reason: rejection.reason.to_string(),
+                    ..Default::default()
+                })
+            }
+        }
+    }
+
+    /// `dr/predicate`.
+    pub async fn predicate(
+        &self,
+        req: m::PredicateRequest,
+    ) -> Result<m::PredicateReply, ServiceError> {
+        let live = self.live.read().await;
+        let g = &live.graph;
+        let cfg = &self.predicates;
+        let at = match req.stamp_ns {
+            0 => At::Latest,
+            t => At::Time(Stamp(t)),
+        };
+        if req.predicate.is_empty() {
+            let facts = predicates::evaluate(g, cfg, at).map_err(dr_err)?;
+            return Ok(m::PredicateReply {
+                facts: facts.iter().map(fact_to_msg).collect(),
+                ..Default::default()
+            });
+        }
+        let kind = PredicateKind::from_name(&req.predicate).ok_or_else(|| {
+            ServiceError::bad_request(format!(
+                "unknown predicate `{}` (known: {})",
+                req.predicate,
+                PredicateKind::ALL.map(|k| k.name()).join(", ")
+            ))
+        })?;
+        let arity = match kind {
+            PredicateKind::Visible | PredicateKind::Reachable | PredicateKind::Near => 2,
+            _ => 1,
+        };
+        if req.args.len() != arity {
+            return Err(ServiceError::bad_request(format!(
+                "`{}` takes {arity} argument(s), got {}",
+                kind.name(),
+                req.args.len()
+            )));
+        }
+        let a = |i: usize| req.args[i].as_str();
+        let holds = match kind {
+            PredicateKind::Visible => predicates::visible(g, a(0), a(1), at),
+            PredicateKind::Reachable => predicates::reachable(g, a(0), a(1), at),
+            PredicateKind::Near => {
+                let threshold = if g.node(a(0)).map_err(dr_err)?.node_type == NodeType::Robot {
+                    cfg.near_robot_m
+                } else {
+                    cfg.near_effector_m
+                };
+                predicates::near(g, a(0), a(1), threshold, at)
+            }
+            PredicateKind::InField => predicates::in_field(g, a(0), cfg, at),
+            PredicateKind::Fallen => predicates::fallen(g, a(0), cfg, at),
+            PredicateKind::ClosestToBall => g.node(a(0)).and_then(|_| {
+                predicates::closest_to_ball(g, cfg, at).map(|v| v.iter().any(|r| r == a(0)))
+            }),
+        }
+        .map_err(dr_err)?;
+        Ok(m::PredicateReply {
+            holds,
+            ..Default::default()
+        })
+    }
+
+    /// `dr/fork`.
+    pub async fn fork(&self, req: m::ForkRequest) -> Result<m::ForkReply, ServiceError> {
+        let live = self.live.read().await;
+        let g = &live.graph;
+        Self::check_updates(g, &req.attributes, &req.poses, &req.joints)?;
+        let proposals = req
+            .changes
+            .iter()
+            .map(proposal_from_msg)
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut f = g.fork();
+        // After every kept sample, so the virtual actions become the fork's current state.
+        let stamp = Stamp(g.newest_stamp().0.saturating_add(1));
+        Self::apply_updates(&mut f, &req.attributes, &req.poses, &req.joints, stamp)
+            .map_err(dr_err)?;
+        let mut rejected = Vec::new();
+        for (i, p) in proposals.into_iter().enumerate() {
+            if let Err(r) = f.propose(p, stamp) {
+                rejected.push(format!("{i}: {}", r.reason));
+            }
+        }
+        let report = fork_report(g, &f, &self.predicates).map_err(dr_err)?;
+        Ok(m::ForkReply {
+            header: Default::default(),
+            became_true: report.facts.became_true.iter().map(fact_to_msg).collect(),
+            became_false: report.facts.became_false.iter().map(fact_to_msg).collect(),
+            joints_changed: report
+                .joints_changed
+                .into_iter()
+                .map(|(joint, live, fork)| m::JointChange { joint, live, fork })
+                .collect(),
+            moved: report
+                .moved
+                .into_iter()
+                .map(|(node, distance_m)| m::Moved { node, distance_m })
+                .collect(),
+            rejected,
+        })
+    }
+
+    /// `dr/pddl`.
+    pub async fn pddl(&self, req: m::PddlRequest) -> Result<m::PddlReply, ServiceError> {
+        let live = self.live.read().await;
+        let name = if req.problem_name.is_empty() {
+            "robocog-state"
+        } else {
+            req.problem_name.as_str()
+        };
+        let goal: Vec<Atom> = req
+            .goal
+            .iter()
+            .map(|f| Atom {
+                predicate: f.predicate.clone(),
+                args: f.args.clone(),
+            })
+            .collect();
+        let problem = export_problem(&live.graph, &self.predicates, At::Latest, name, &goal)
+            .map_err(dr_err)?;
+        Ok(m::PddlReply {
+            header: Default::default(),
+            problem: problem.to_pddl(),
+        })
+    }
+
+    /// `dr/snapshot`.
+    pub async fn snapshot(&self, _req: m::SnapshotRequest) -> Result<m::SnapshotData, ServiceError> {
+        let live = self.live.read().await;
+        Ok(m::SnapshotData {
+            header: Default::default(),
+            json: live.graph.snapshot_json(),
+            nodes: live.graph.len() as u32,
+            last_seq: live.last_seq,
+        })
+    }
+
+    /// `dr/restore`: replace the live graph with a snapshot (`BadRequest` if it does not
+    /// restore); persisted as a `restore` line, then compacted; published as `restored`.
+    pub async fn restore(&self, req: m::SnapshotData) -> Result<m::SnapshotData, ServiceError> {
+        let snap: types::Snapshot = serde_json::from_str(&req.json)
+            .map_err(|e| ServiceError::bad_request(format!("not a valid snapshot: {e}")))?;
+        let mut graph = SceneGraph::restore(&snap).map_err(dr_err)?;
+        graph.set_history_len(self.history_len);
+        graph.enable_log();
+        let mut live = self.live.write().await;
+        live.last_seq += 1;
+        let seq = live.last_seq;
+        live.graph = graph;
+        let line = LogLine {
+            seq,
+            event: None,
+            restore: Some(snap),
+        };
+        self.persist(&mut live, std::slice::from_ref(&line))?;
+        if let Some(store) = live.store.as_mut()
+            && let Err(e) = store.compact(&live.graph, seq)
+        {
+            tracing::warn!("compaction after a restore failed (the log holds it): {e}");
+        }
+        tracing::info!(nodes = live.graph.len(), seq, "state replaced by a snapshot");
+        let msg = m::DrChange {
+            header: interfaces::Header::new("world"),
+            seq,
+            kind: "restored".into(),
+            ..Default::default()
+        };
+        if self.changes.send(msg).await.is_err() {
+            self.bus.counters().incr("dr/changes_not_published");
+        }
+        Ok(m::SnapshotData {
+            header: Default::default(),
+            json: live.graph.snapshot_json(),
+            nodes: live.graph.len() as u32,
+            last_seq: seq,
+        })
+    }
+
+    /// Writes a final snapshot (clean stop).
+    pub async fn checkpoint(&self) {
+        let mut live = self.live.write().await;
+        let live = &mut *live;
+        if let Some(store) = live.store.as_mut()
+            && store.since_compaction() > 0
+            && let Err(e) = store.compact(&live.graph, live.last_seq)
+        {
+            tracing::warn!("final snapshot failed (the change log holds everything): {e}");
+        }
+    }
+}
+
+/// A started service: dropping it stops serving.
+pub struct Running {
+    /// The shared state (handlers can be called directly, without the bus).
+    pub dr: Arc<Dr>,
+    /// What recovery did (`None` without a state folder).
+    pub recovery: Option<RecoveryReport>,
+    _services: Vec<interfaces::bus::ServiceHandle>,
+    publisher: tokio::task::JoinHandle<()>,
+}
+
+impl std::fmt::Debug for Running {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Running")
+            .field("recovery", &self.recovery)
+            .finish()
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        self.publisher.abort();
+    }
+}
+
+fn log_recovery(dir: &Path, r: &RecoveryReport) {
+    for p in &r.problems {
+        tracing::warn!("{p}");
+    }
+    match &r.snapshot {
+        Some(s) => tracing::info!(
+            "recovered the state from {}: snapshot {}, {} changes replayed, {} bad log lines skipped, {} changes no longer applied, last change #{}",
+            dir.display(),
+            s.display(),
+            r.replayed,
+            r.bad_lines,
+            r.failed_events,
+            r.last_seq
+        ),
+        None => tracing::info!(
+            "no state in {}: started from the scene ({} changes replayed)",
+            dir.display(),
+            r.replayed
+        ),
+    }
+}
+
+/// Loads or recovers the graph, serves every DR service and starts publishing changes.
+pub async fn start(bus: Bus, config: ServiceConfig) -> anyhow::Result<Running> {
+    let (mut graph, store, recovery, last_seq) = match &config.state_dir {
+        Some(dir) => {
+            let (store, graph, report) =
+                Store::open(dir, config.store, || config.start_scene())?;
+            log_recovery(dir, &report);
+            let counters = bus.counters();
+            counters
+                .counter("dr/recovery_bad_log_lines")
+                .fetch_add(report.bad_lines as u64, std::sync::atomic::Ordering::Relaxed);
+            counters
+                .counter("dr/recovery_corrupt_snapshots")
+                .fetch_add(report.corrupt_snapshots as u64, std::sync::atomic::Ordering::Relaxed);
+            let seq = report.last_seq;
+            (graph, Some(store), Some(report), seq)
+        }
+        None => {
+            let g = config.start_scene().map_err(|e| {
+                anyhow::anyhow!("cannot build the {:?} start scene: {e}", config.scene)
+            })?;
+            tracing::info!("no state folder: the state lives in memory only");
+            (g, None, None, 0)
+        }
+    };
+    graph.set_history_len(config.history_len);
+    graph.enable_log();
+    let nodes = graph.len();
+
+    let (tx, mut rx) = mpsc::channel::<m::DrChange>(4096);
+    let publisher = bus.publisher(&topics::DR_CHANGES).await?;
+    let publisher = tokio::spawn(async move {
+        while let Some(mut msg) = rx.recv().await {
+            if let Err(e) = publisher.publish(&mut msg).await {
+                tracing::warn!("cannot publish a change: {e}");
+            }
+        }
+    });
+    let dr = Arc::new(Dr {
+        live: RwLock::new(Live {
+            graph,
+            store,
+            last_seq,
+        }),
+        changes: tx,
+        predicates: config.predicates.clone(),
+        history_len: config.history_len,
+        bus: bus.clone(),
+    });
+
+    macro_rules! serve {
+        ($svc:expr, $method:ident) => {{
+            let dr = dr.clone();
+            bus.serve(&$svc, move |req| {
+                let dr = dr.clone();
+                async move { dr.$method(req).await }
+            })
+            .await?
+        }};
+    }
+    let services = vec![
+        serve!(topics::DR_GET_NODE, get_node),
+        serve!(topics::DR_TRANSFORM, transform),
+        serve!(topics::DR_UPDATE, update),
+        serve!(topics::DR_PROPOSE, propose),
+        serve!(topics::DR_PREDICATE, predicate),
+        serve!(topics::DR_FORK, fork),
+        serve!(topics::DR_PDDL, pddl),
+        serve!(topics::DR_SNAPSHOT, snapshot),
+        serve!(topics::DR_RESTORE, restore),
+    ];
+    tracing::info!(
+        nodes,
+        last_seq,
+        "serving the deep representation ({} services, changes on {})",
+        services.len(),
+        topics::DR_CHANGES.name()
+    );
+    Ok(Running {
+        dr,
+        recovery,
+        _services: services,
+        publisher,
+    })
+}
+
+/// The component: [`start`], serve until `shutdown`, write a final snapshot.
+pub async fn run(bus: Bus, config: ServiceConfig, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let running = start(bus, config).await?;
+    shutdown.wait().await;
+    running.dr.checkpoint().await;
+    // Let queued change events leave before the process ends.
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    tracing::info!("stopped");
+    Ok(())
+}

@@ -1,0 +1,52 @@
+//! `robocog check <manifest>`: validate a graph without running it.
+
+use crate::manifest::{Manifest, Overrides};
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The launch manifest (TOML).
+    pub manifest: PathBuf,
+    /// Use this profile's variables (e.g. `real` instead of the simulated drivers).
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// Override a variable: --set robot=real (repeatable).
+    #[arg(long = "set", value_parser = crate::manifest::parse_set)]
+    pub set: Vec<(String, String)>,
+}
+
+/// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
+pub fn execute(args: Args) -> i32 {
+    let overrides = Overrides { profile: args.profile, set: args.set };
+    let manifest = match Manifest::load(&args.manifest, &overrides) {
+        Ok(m) => m,
+        Err(problems) => {
+            eprintln!("{problems}");
+            return 1;
+        }
+    };
+    match crate::check::check(&manifest) {
+        Ok(report) => {
+            for w in &report.warnings {
+                eprintln!("warning: {w}");
+            }
+            let topics: std::collections::BTreeSet<&str> = report
+                .interfaces
+                .values()
+                .flat_map(|i| i.publishes.iter().chain(&i.subscribes).map(|p| p.name.as_str()))
+                .collect();
+            println!(
+                "{}: graph {:?} is sound: {} components, {} topics",
+                args.manifest.display(),
+                manifest.name,
+                manifest.components.len(),
+                topics.len()
+            );
+            0
+        }
+        Err(problems) => {
+            eprintln!("{problems}");
+            1
+        }
+    }
+}

@@ -1,0 +1,12 @@
+//! # robocog: the command line of the component network
+//!
+//! - `robocog launch <manifest>` runs a graph of components ([`supervisor`]);
+//! - `robocog check <manifest>` validates one ([`manifest`], [`check`]);
+//! - `robocog topic list|echo|hz|info|pub` and `robocog component list` look at a running graph.
+//!
+//! One file per verb lives in [`command`].
+
+pub mod check;
+pub mod command;
+pub mod manifest;
+pub mod supervisor;

@@ -1,0 +1,53 @@
+use clap::{Parser, Subcommand};
+use robocog::command;
+use std::process::ExitCode;
+
+/// robocog: run, check and inspect graphs of robot components on a zenoh bus.
+#[derive(Debug, Parser)]
+#[command(name = "robocog", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    verb: Verb,
+}
+
+#[derive(Debug, Subcommand)]
+enum Verb {
+    /// Run every component of a launch manifest as a process, with a router on loopback.
+    Launch(command::launch::Args),
+    /// Validate a launch manifest: keys, binaries, dependencies, topics, hardware claims.
+    Check(command::check::Args),
+    /// List, echo, measure, describe or publish topics of a running graph.
+    Topic(command::topic::Args),
+    /// List the live components of a running graph.
+    Component(command::component::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    interfaces::node::init_logging();
+    if let Verb::Check(args) = cli.verb {
+        return ExitCode::from(command::check::execute(args) as u8);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build() {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async move {
+        match cli.verb {
+            Verb::Launch(a) => command::launch::execute(a).await,
+            Verb::Topic(a) => command::topic::execute(a).await,
+            Verb::Component(a) => command::component::execute(a).await,
+            Verb::Check(_) => Ok(0),
+        }
+    });
+    match result {
+        Ok(code) => ExitCode::from(code.clamp(0, 255) as u8),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

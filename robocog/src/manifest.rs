@@ -1,0 +1,555 @@
+//! Launch manifests: a graph of components, strictly parsed.
+//!
+//! ```toml
+//! include = ["common.toml"]          # other manifests, relative to this file, merged first
+//!
+//! [graph]
+//! name = "touch_the_ball"
+//! namespace = "loki"                 # --namespace wins; default "default"
+//! router = "tcp/127.0.0.1:7447"      # the launcher's router; --router wins; port 0 = any free port
+//!
+//! [vars]                             # ${name} in binary, args, env and hardware; --set name=value
+//! robot = "sim"
+//!
+//! [profiles.real]                    # --profile real: these vars replace the defaults
+//! robot = "dynamixel"
+//!
+//! [[component]]
+//! name = "joint_motor"               # unique in the graph; its name on the bus
+//! binary = "joint_motor"             # next to `robocog`, on PATH, or a path relative to this file
+//! args = ["--driver", "${robot}"]
+//! env = { RUST_LOG = "info" }
+//! depends_on = ["deep_representation"]  # started once these are up (their liveliness token seen)
+//! restart = "on-failure"             # never | on-failure | always
+//! max_restarts = 5                   # then it has failed for good
+//! backoff_ms = 500                   # first restart delay, doubled each time, at most 30 s
+//! required = true                    # failed for good => the whole graph stops, exit code 1
+//! ready_timeout_s = 15               # how long to wait for its liveliness token
+//! stop_timeout_s = 5                 # SIGTERM, then SIGKILL after this long
+//! hardware = ["serial:/dev/ttyUSB0"] # ports it claims; two claims of one port are an error
+//! completes_graph = false            # true: when it exits 0, the graph is done (the launcher exits 0)
+//! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user)
+//! ```
+//!
+//! Unknown keys are errors. Every error names the file and line.
+
+use serde::Deserialize;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use toml::Spanned;
+
+/// Where something was written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Origin {
+    pub file: PathBuf,
+    pub line: usize,
+}
+
+impl fmt::Display for Origin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}", self.file.display(), self.line)
+    }
+}
+
+/// A problem in a manifest, at a place.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problem {
+    pub origin: Origin,
+    pub message: String,
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.origin, self.message)
+    }
+}
+
+/// Every problem found, not just the first.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problems(pub Vec<Problem>);
+
+impl fmt::Display for Problems {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, p) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "error: {p}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Problems {}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum RestartPolicy {
+    /// Never restarted.
+    Never,
+    /// Restarted when it exits with an error or is killed by a signal.
+    #[default]
+    OnFailure,
+    /// Restarted whenever it exits.
+    Always,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawManifest {
+    #[serde(default)]
+    include: Vec<Spanned<String>>,
+    #[serde(default)]
+    graph: RawGraph,
+    #[serde(default)]
+    vars: BTreeMap<String, String>,
+    #[serde(default)]
+    profiles: BTreeMap<String, BTreeMap<String, String>>,
+    #[serde(default)]
+    component: Vec<RawComponent>,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawGraph {
+    name: Option<String>,
+    namespace: Option<String>,
+    router: Option<String>,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_max_restarts() -> u32 {
+    5
+}
+fn default_backoff_ms() -> u64 {
+    500
+}
+fn default_ready_timeout_s() -> f64 {
+    15.0
+}
+fn default_stop_timeout_s() -> f64 {
+    5.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawComponent {
+    name: Spanned<String>,
+    binary: Spanned<String>,
+    #[serde(default)]
+    args: Vec<String>,
+    #[serde(default)]
+    env: BTreeMap<String, String>,
+    #[serde(default)]
+    depends_on: Vec<Spanned<String>>,
+    #[serde(default)]
+    restart: RestartPolicy,
+    #[serde(default = "default_max_restarts")]
+    max_restarts: u32,
+    #[serde(default = "default_backoff_ms")]
+    backoff_ms: u64,
+    #[serde(default = "default_true")]
+    required: bool,
+    #[serde(default = "default_ready_timeout_s")]
+    ready_timeout_s: f64,
+    #[serde(default = "default_stop_timeout_s")]
+    stop_timeout_s: f64,
+    #[serde(default)]
+    hardware: Vec<Spanned<String>>,
+    #[serde(default)]
+    completes_graph: bool,
+    #[serde(default)]
+    external_inputs: Vec<String>,
+}
+
+/// One component of a resolved graph.
+#[derive(Debug, Clone)]
+pub struct Component {
+    pub name: String,
+    /// As written (after substitution); see [`Component::resolve_binary`].
+    pub binary: String,
+    pub args: Vec<String>,
+    pub env: BTreeMap<String, String>,
+    pub depends_on: Vec<String>,
+    pub restart: RestartPolicy,
+    pub max_restarts: u32,
+    pub backoff: Duration,
+    pub required: bool,
+    pub ready_timeout: Duration,
+    pub stop_timeout: Duration,
+    pub hardware: Vec<(String, Origin)>,
+    pub completes_graph: bool,
+    /// Topics it subscribes to that are published from outside the graph.
+    pub external_inputs: Vec<String>,
+    pub origin: Origin,
+    /// The directory of the manifest that declared it (relative binary paths start there).
+    pub dir: PathBuf,
+}
+
+/// A resolved graph: includes merged, variables substituted, checked.
+#[derive(Debug, Clone)]
+pub struct Manifest {
+    pub name: String,
+    pub namespace: Option<String>,
+    pub router: Option<String>,
+    pub vars: BTreeMap<String, String>,
+    pub components: Vec<Component>,
+    pub file: PathBuf,
+}
+
+/// Options that change a manifest from the command line.
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    /// `--profile NAME`.
+    pub profile: Option<String>,
+    /// `--set key=value`, applied last.
+    pub set: Vec<(String, String)>,
+}
+
+/// Parse `key=value`.
+pub fn parse_set(s: &str) -> Result<(String, String), String> {
+    let (k, v) = s.split_once('=').ok_or_else(|| format!("expected key=value, got {s:?}"))?;
+    if k.is_empty() {
+        return Err(format!("empty key in {s:?}"));
+    }
+    Ok((k.to_string(), v.to_string()))
+}
+
+fn line_of(src: &str, offset: usize) -> usize {
+    src[..offset.min(src.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+struct Loaded {
+    file: PathBuf,
+    src: String,
+    raw: RawManifest,
+}
+
+fn load_tree(
+    path: &Path,
+    stack: &mut Vec<PathBuf>,
+    out: &mut Vec<Loaded>,
+    problems: &mut Vec<Problem>,
+    from: Option<Origin>,
+) {
+    let at = |line| Origin { file: path.to_path_buf(), line };
+    let src = match std::fs::read_to_string(path) {
+        Ok(s) => s,
+        Err(e) => {
+            let origin = from.unwrap_or_else(|| at(0));
+            problems.push(Problem { origin, message: format!("cannot read {}: {e}", path.display()) });
+            return;
+        }
+    };
+    let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+    if stack.contains(&canonical) {
+        let origin = from.unwrap_or_else(|| at(0));
+        problems.push(Problem { origin, message: format!("include cycle through {}", path.display()) });
+        return;
+    }
+    let raw: RawManifest = match toml::from_str(&src) {
+        Ok(r) => r,
+        Err(e) => {
+            let line = e.span().map_or(0, |s| line_of(&src, s.start));
+            problems.push(Problem { origin: at(line), message: e.message().trim().to_string() });
+            return;
+        }
+    };
+    stack.push(canonical);
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    for inc in &raw.include {
+        let child = dir.join(inc.get_ref());
+        let origin = at(line_of(&src, inc.span().start));
+        load_tree(&child, stack, out, problems, Some(origin));
+    }
+    stack.pop();
+    out.push(Loaded { file: path.to_path_buf(), src, raw });
+}
+
+fn substitute(s: &str, vars: &BTreeMap<String, String>) -> Result<String, String> {
+    let mut out = String::with_capacity(s.len());
+    let mut rest = s;
+    while let Some(i) = rest.find("${") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 2..];
+        let end = after.find('}').ok_or_else(|| format!("unclosed ${{ in {s:?}"))?;
+        let name = &after[..end];
+        let value = vars.get(name).ok_or_else(|| {
+            let known: Vec<&str> = vars.keys().map(String::as_str).collect();
+            format!("unknown variable ${{{name}}} (known: {})", known.join(", "))
+        })?;
+        out.push_str(value);
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    Ok(out)
+}
+
+impl Manifest {
+    /// Load and resolve `path`: includes, profile, `--set`, substitution, and the structural
+    /// checks (duplicates, unknown dependencies, cycles, hardware claims). Binaries and topics are
+    /// checked by [`crate::check`].
+    pub fn load(path: &Path, overrides: &Overrides) -> Result<Manifest, Problems> {
+        let mut problems = Vec::new();
+        let mut loaded = Vec::new();
+        load_tree(path, &mut Vec::new(), &mut loaded, &mut problems, None);
+        if !problems.is_empty() {
+            return Err(Problems(problems));
+        }
+        let top = path.to_path_buf();
+        let at_top = |line| Origin { file: top.clone(), line };
+
+        // Graph settings: the top file wins over includes.
+        let (mut name, mut namespace, mut router) = (None, None, None);
+        let mut vars = BTreeMap::new();
+        let mut profiles: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
+        for l in &loaded {
+            name = l.raw.graph.name.clone().or(name);
+            namespace = l.raw.graph.namespace.clone().or(namespace);
+            router = l.raw.graph.router.clone().or(router);
+            vars.extend(l.raw.vars.clone());
+            for (p, v) in &l.raw.profiles {
+                profiles.entry(p.clone()).or_default().extend(v.clone());
+            }
+        }
+        if let Some(p) = &overrides.profile {
+            match profiles.get(p) {
+                Some(v) => vars.extend(v.clone()),
+                None => {
+                    let known: Vec<&str> = profiles.keys().map(String::as_str).collect();
+                    problems.push(Problem {
+                        origin: at_top(0),
+                        message: format!("unknown profile {p:?} (known: {})", known.join(", ")),
+                    });
+                }
+            }
+        }
+        for (k, v) in &overrides.set {
+            vars.insert(k.clone(), v.clone());
+        }
+
+        let all_names: HashSet<&str> = loaded
+            .iter()
+            .flat_map(|l| l.raw.component.iter().map(|c| c.name.get_ref().as_str()))
+            .collect();
+        let mut components: Vec<Component> = Vec::new();
+        let mut first_seen: HashMap<String, Origin> = HashMap::new();
+        for l in &loaded {
+            let origin_of = |span: std::ops::Range<usize>| Origin {
+                file: l.file.clone(),
+                line: line_of(&l.src, span.start),
+            };
+            for rc in &l.raw.component {
+                let origin = origin_of(rc.name.span());
+                let sub_errors = std::cell::RefCell::new(Vec::new());
+                let sub = |s: &str| match substitute(s, &vars) {
+                    Ok(v) => v,
+                    Err(message) => {
+                        sub_errors.borrow_mut().push(Problem { origin: origin.clone(), message });
+                        s.to_string()
+                    }
+                };
+                let cname = rc.name.get_ref().clone();
+                if !interfaces::topic::is_valid_segment(&cname) {
+                    problems.push(Problem {
+                        origin: origin.clone(),
+                        message: format!(
+                            "component name {cname:?}: use letters, digits, '_', '-', '.'"
+                        ),
+                    });
+                }
+                if let Some(first) = first_seen.get(&cname) {
+                    problems.push(Problem {
+                        origin: origin.clone(),
+                        message: format!("duplicate component name {cname:?} (first at {first})"),
+                    });
+                    continue;
+                }
+                first_seen.insert(cname.clone(), origin.clone());
+                let binary = sub(rc.binary.get_ref());
+                let args = rc.args.iter().map(|a| sub(a)).collect();
+                let env = rc.env.iter().map(|(k, v)| (k.clone(), sub(v))).collect();
+                let hardware = rc
+                    .hardware
+                    .iter()
+                    .map(|h| (sub(h.get_ref()), origin_of(h.span())))
+                    .collect();
+                problems.extend(sub_errors.take());
+                let secs = |s: f64, what: &str, problems: &mut Vec<Problem>| {
+                    if s.is_finite() && s > 0.0 {
+                        Duration::from_secs_f64(s)
+                    } else {
+                        problems.push(Problem {
+                            origin: origin.clone(),
+                            message: format!("{what} must be a positive number of seconds"),
+                        });
+                        Duration::from_secs(1)
+                    }
+                };
+                let ready_timeout = secs(rc.ready_timeout_s, "ready_timeout_s", &mut problems);
+                let stop_timeout = secs(rc.stop_timeout_s, "stop_timeout_s", &mut problems);
+                components.push(Component {
+                    name: cname,
+                    binary,
+                    args,
+                    env,
+                    depends_on: rc.depends_on.iter().map(|d| d.get_ref().clone()).collect(),
+                    restart: rc.restart,
+                    max_restarts: rc.max_restarts,
+                    backoff: Duration::from_millis(rc.backoff_ms.max(1)),
+                    required: rc.required,
+                    ready_timeout,
+                    stop_timeout,
+                    hardware,
+                    completes_graph: rc.completes_graph,
+                    external_inputs: rc.external_inputs.clone(),
+                    origin: origin.clone(),
+                    dir: l.file.parent().unwrap_or(Path::new(".")).to_path_buf(),
+                });
+                // Unknown dependencies, reported at the dependency's own line.
+                for d in &rc.depends_on {
+                    if !all_names.contains(d.get_ref().as_str()) {
+                        problems.push(Problem {
+                            origin: origin_of(d.span()),
+                            message: format!(
+                                "component {:?} depends on {:?}, which is not in the graph",
+                                rc.name.get_ref(),
+                                d.get_ref()
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+        if components.is_empty() && problems.is_empty() {
+            problems.push(Problem { origin: at_top(0), message: "the graph has no [[component]]".into() });
+        }
+
+        // Two components claiming one hardware port.
+        let mut claims: HashMap<String, (String, Origin)> = HashMap::new();
+        for c in &components {
+            for (h, origin) in &c.hardware {
+                if let Some((other, first)) = claims.get(h) {
+                    if other != &c.name {
+                        problems.push(Problem {
+                            origin: origin.clone(),
+                            message: format!(
+                                "hardware {h:?} is claimed by both {other:?} ({first}) and {:?}",
+                                c.name
+                            ),
+                        });
+                    }
+                } else {
+                    claims.insert(h.clone(), (c.name.clone(), origin.clone()));
+                }
+            }
+        }
+
+        let manifest = Manifest {
+            name: name.unwrap_or_else(|| {
+                path.file_stem().map_or("graph".into(), |s| s.to_string_lossy().into_owned())
+            }),
+            namespace,
+            router,
+            vars,
+            components,
+            file: top,
+        };
+        if let Err(cycle) = manifest.start_order() {
+            problems.push(cycle);
+        }
+        if problems.is_empty() { Ok(manifest) } else { Err(Problems(problems)) }
+    }
+
+    /// The components in an order where each comes after its dependencies, or the cycle that
+    /// prevents one.
+    pub fn start_order(&self) -> Result<Vec<&Component>, Problem> {
+        let index: HashMap<&str, usize> =
+            self.components.iter().enumerate().map(|(i, c)| (c.name.as_str(), i)).collect();
+        // 0 = unvisited, 1 = on the stack, 2 = done.
+        let mut state = vec![0u8; self.components.len()];
+        let mut order = Vec::new();
+        let mut stack: Vec<usize> = Vec::new();
+        fn visit<'a>(
+            i: usize,
+            m: &'a Manifest,
+            index: &HashMap<&str, usize>,
+            state: &mut [u8],
+            stack: &mut Vec<usize>,
+            order: &mut Vec<&'a Component>,
+        ) -> Result<(), Problem> {
+            if state[i] == 2 {
+                return Ok(());
+            }
+            if state[i] == 1 {
+                let start = stack.iter().position(|&s| s == i).unwrap_or(0);
+                let mut names: Vec<&str> =
+                    stack[start..].iter().map(|&s| m.components[s].name.as_str()).collect();
+                names.push(&m.components[i].name);
+                return Err(Problem {
+                    origin: m.components[i].origin.clone(),
+                    message: format!("dependency cycle: {}", names.join(" -> ")),
+                });
+            }
+            state[i] = 1;
+            stack.push(i);
+            for d in &m.components[i].depends_on {
+                if let Some(&j) = index.get(d.as_str()) {
+                    visit(j, m, index, state, stack, order)?;
+                }
+            }
+            stack.pop();
+            state[i] = 2;
+            order.push(&m.components[i]);
+            Ok(())
+        }
+        for i in 0..self.components.len() {
+            visit(i, self, &index, &mut state, &mut stack, &mut order)?;
+        }
+        Ok(order)
+    }
+
+    pub fn component(&self, name: &str) -> Option<&Component> {
+        self.components.iter().find(|c| c.name == name)
+    }
+}
+
+impl Component {
+    /// Find the executable: a path (relative to the manifest's folder) when it holds a `/`,
+    /// otherwise next to the running `robocog`, then on `PATH`.
+    pub fn resolve_binary(&self) -> Option<PathBuf> {
+        resolve_binary(&self.binary, &self.dir)
+    }
+}
+
+/// See [`Component::resolve_binary`].
+pub fn resolve_binary(binary: &str, dir: &Path) -> Option<PathBuf> {
+    let is_exec = |p: &Path| {
+        use std::os::unix::fs::PermissionsExt;
+        p.is_file() && p.metadata().map(|m| m.permissions().mode() & 0o111 != 0).unwrap_or(false)
+    };
+    if binary.contains('/') {
+        let p = dir.join(binary);
+        return is_exec(&p).then_some(p);
+    }
+    let mut candidates = Vec::new();
+    if let Ok(exe) = std::env::current_exe()
+        && let Some(d) = exe.parent()
+    {
+        candidates.push(d.join(binary));
+        // Running from target/<profile>/deps (a test binary): the binaries are one level up.
+        if d.ends_with("deps")
+            && let Some(up) = d.parent()
+        {
+            candidates.push(up.join(binary));
+        }
+    }
+    if let Some(path) = std::env::var_os("PATH") {
+        candidates.extend(std::env::split_paths(&path).map(|d| d.join(binary)));
+    }
+    candidates.into_iter().find(|p| is_exec(p))
+}

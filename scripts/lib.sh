@@ -1,0 +1,41 @@
+# Shared by the scripts: where builds go, and how to say what we are doing.
+# shellcheck shell=bash
+
+# One persistent build folder outside the clone, shared by runs, tests, benchmarks and CI, in one
+# profile (release): a clean build of the dependencies takes minutes on a small machine.
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/robocog/target}"
+export CARGO_TERM_COLOR="${CARGO_TERM_COLOR:-never}"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export ROOT
+BIN="$CARGO_TARGET_DIR/release"
+export BIN
+
+step() { printf '\n==> %s\n' "$*" >&2; }
+
+# Install Debian packages that are missing, once (idempotent, quiet when all are there).
+need_debs() {
+  local missing=()
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    step "installing Debian packages: ${missing[*]}"
+    local sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+  fi
+}
+
+# Make sure cargo-nextest is there (the machine image ships it; install it otherwise).
+need_nextest() {
+  if ! cargo nextest --version >/dev/null 2>&1; then
+    step "installing cargo-nextest"
+    cargo install --locked cargo-nextest
+  fi
+}
+
+build_all() {
+  step "building every robocog binary (release, into $CARGO_TARGET_DIR)"
+  (cd "$ROOT" && cargo build --release --workspace --bins --examples)
+}

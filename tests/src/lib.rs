@@ -1,0 +1,272 @@
+//! Helpers for the process-and-bus tests: find the built binaries, give every test a fresh
+//! namespace and a router on a free port, and wait for things with a time-out, always.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// A built binary of the workspace, next to the test executable's folder.
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let mut dir = exe.parent().expect("test dir").to_path_buf();
+    if dir.ends_with("deps") {
+        dir.pop();
+    }
+    let p = dir.join(name);
+    assert!(
+        p.is_file(),
+        "{} is not built: build the workspace's binaries first (scripts/test does)",
+        p.display()
+    );
+    p
+}
+
+/// A namespace no other test (or deployment) uses.
+pub fn unique_namespace(tag: &str) -> String {
+    static N: AtomicU32 = AtomicU32::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!("test-{tag}-{}-{}-{nanos}", std::process::id(), N.fetch_add(1, Ordering::Relaxed))
+}
+
+/// A scratch folder for one test.
+pub fn scratch(ns: &str) -> PathBuf {
+    let d = std::env::temp_dir().join("robocog-tests").join(ns);
+    std::fs::create_dir_all(&d).expect("scratch dir");
+    d
+}
+
+/// Write a manifest into `dir`, with `@FIXTURE@` replaced by the fixture node's path.
+pub fn write_manifest(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    let fixture = bin("fixture_node");
+    std::fs::write(&p, text.replace("@FIXTURE@", &fixture.display().to_string())).expect("write manifest");
+    p
+}
+
+/// Lines a process printed (stdout and stderr), collected by background threads.
+#[derive(Clone, Default)]
+pub struct Lines {
+    inner: Arc<(Mutex<Vec<String>>, Condvar)>,
+}
+
+impl Lines {
+    fn follow(&self, stream: impl std::io::Read + Send + 'static) {
+        let me = self.clone();
+        std::thread::Builder::new()
+            .name("test-output".into())
+            .spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    let (m, cv) = &*me.inner;
+                    m.lock().unwrap().push(line);
+                    cv.notify_all();
+                }
+            })
+            .expect("spawn reader");
+    }
+    /// Every line so far.
+    pub fn all(&self) -> Vec<String> {
+        self.inner.0.lock().unwrap().clone()
+    }
+    /// Wait until a line satisfies `pred`, at most `timeout`; panics with the output otherwise.
+    pub fn wait_for(&self, what: &str, timeout: Duration, pred: impl Fn(&str) -> bool) -> String {
+        let deadline = Instant::now() + timeout;
+        let (m, cv) = &*self.inner;
+        let mut lines = m.lock().unwrap();
+        loop {
+            if let Some(l) = lines.iter().find(|l| pred(l)) {
+                return l.clone();
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                panic!("timed out after {timeout:?} waiting for {what}; output so far:\n{}", lines.join("\n"));
+            }
+            lines = cv.wait_timeout(lines, deadline - now).unwrap().0;
+        }
+    }
+    /// Wait until `pred` holds over all the lines so far, at most `timeout`; panics with the
+    /// output otherwise.
+    pub fn wait_until(&self, what: &str, timeout: Duration, pred: impl Fn(&[String]) -> bool) {
+        let deadline = Instant::now() + timeout;
+        let (m, cv) = &*self.inner;
+        let mut lines = m.lock().unwrap();
+        loop {
+            if pred(&lines) {
+                return;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                panic!("timed out after {timeout:?} waiting for {what}; output so far:\n{}", lines.join("\n"));
+            }
+            lines = cv.wait_timeout(lines, deadline - now).unwrap().0;
+        }
+    }
+
+    /// How many lines satisfy `pred` now.
+    pub fn count(&self, pred: impl Fn(&str) -> bool) -> usize {
+        self.inner.0.lock().unwrap().iter().filter(|l| pred(l)).count()
+    }
+}
+
+/// A running `robocog launch`, with a router on a free port and a fresh namespace.
+pub struct Launch {
+    pub child: Child,
+    pub namespace: String,
+    pub endpoint: String,
+    pub lines: Lines,
+}
+
+impl Launch {
+    pub fn start(manifest: &Path, namespace: &str, extra: &[&str]) -> Launch {
+        let mut child = Command::new(bin("robocog"))
+            .arg("launch")
+            .arg(manifest)
+            .args(["--namespace", namespace, "--router", "tcp/127.0.0.1:0", "--color", "never"])
+            .args(extra)
+            .env("RUST_LOG", "info")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start robocog launch");
+        let lines = Lines::default();
+        lines.follow(child.stdout.take().expect("stdout"));
+        lines.follow(child.stderr.take().expect("stderr"));
+        let line = lines.wait_for("the router line", Duration::from_secs(20), |l| {
+            l.contains(": router tcp/") || l.starts_with("error: ")
+        });
+        assert!(!line.starts_with("error: "), "the launcher refused the graph: {line}");
+        let endpoint = line
+            .split("router ")
+            .nth(1)
+            .and_then(|s| s.split(',').next())
+            .expect("router endpoint")
+            .to_string();
+        Launch { child, namespace: namespace.to_string(), endpoint, lines }
+    }
+
+    /// Connection flags for a tool or a test's own bus to join this graph.
+    pub fn connect_flags(&self) -> Vec<String> {
+        vec!["--namespace".into(), self.namespace.clone(), "--connect".into(), self.endpoint.clone()]
+    }
+
+    pub fn connect_args(&self) -> interfaces::ConnectArgs {
+        interfaces::ConnectArgs::to_router(&self.endpoint, &self.namespace)
+    }
+
+    /// Send SIGTERM to the launcher.
+    pub fn sigterm(&self) {
+        signal(self.child.id(), "TERM");
+    }
+
+    /// Wait for the launcher to exit, at most `timeout`.
+    pub fn wait_exit(&mut self, timeout: Duration) -> ExitStatus {
+        wait_child(&mut self.child, timeout).unwrap_or_else(|| {
+            panic!("launcher still running after {timeout:?}; output:\n{}", self.lines.all().join("\n"))
+        })
+    }
+
+    /// Run `robocog <args...>` against this graph (connection flags appended).
+    pub fn robocog(&self, args: &[&str], timeout: Duration) -> Output {
+        let mut all: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        all.extend(self.connect_flags());
+        run(&bin("robocog"), &all, timeout)
+    }
+}
+
+impl Drop for Launch {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_none() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Send a signal by name (`TERM`, `KILL`) with kill(1).
+pub fn signal(pid: u32, sig: &str) {
+    let _ = Command::new("kill").arg(format!("-{sig}")).arg(pid.to_string()).status();
+}
+
+/// Whether process `pid` exists (and is not a zombie).
+pub fn alive(pid: u32) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(stat) => !stat.rsplit(')').next().unwrap_or("").trim_start().starts_with('Z'),
+        Err(_) => false,
+    }
+}
+
+/// Wait for a child to exit, at most `timeout`.
+pub fn wait_child(child: &mut Child, timeout: Duration) -> Option<ExitStatus> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Ok(Some(s)) = child.try_wait() {
+            return Some(s);
+        }
+        if Instant::now() >= deadline {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Run a command to completion with a time-out (killed and reported when it runs over).
+pub fn run(program: &Path, args: &[String], timeout: Duration) -> Output {
+    let mut child = Command::new(program)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", program.display()));
+    let out = Lines::default();
+    let err = Lines::default();
+    out.follow(child.stdout.take().expect("stdout"));
+    err.follow(child.stderr.take().expect("stderr"));
+    let status = match wait_child(&mut child, timeout) {
+        Some(s) => s,
+        None => {
+            let _ = child.kill();
+            panic!(
+                "{} {args:?} ran over {timeout:?}\nstdout:\n{}\nstderr:\n{}",
+                program.display(),
+                out.all().join("\n"),
+                err.all().join("\n")
+            );
+        }
+    };
+    std::thread::sleep(Duration::from_millis(50));
+    Output {
+        status,
+        stdout: (out.all().join("\n") + "\n").into_bytes(),
+        stderr: (err.all().join("\n") + "\n").into_bytes(),
+    }
+}
+
+/// Wait until `f` returns `Some`, polling, at most `timeout`.
+pub fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "timed out after {timeout:?} waiting for {what}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The pid of live component `name`, from `robocog component list --json`.
+pub fn component_pid(launch: &Launch, name: &str) -> Option<u32> {
+    let out = launch.robocog(&["component", "list", "--json"], Duration::from_secs(15));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).ok()?;
+    v.as_array()?
+        .iter()
+        .find(|c| c["name"] == name)
+        .and_then(|c| c["pid"].as_u64())
+        .map(|p| p as u32)
+}

@@ -1,0 +1,218 @@
+//! `robocog check` names the file and line of every broken-manifest kind.
+
+use robocog_tests::*;
+use std::time::Duration;
+
+fn check(text: &str) -> (i32, String, String) {
+    let ns = unique_namespace("check");
+    let dir = scratch(&ns);
+    let m = write_manifest(&dir, "graph.toml", text);
+    let out = run(&bin("robocog"), &["check".into(), m.display().to_string()], Duration::from_secs(30));
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+        m.display().to_string(),
+    )
+}
+
+fn assert_rejected(text: &str, line: usize, phrase: &str) {
+    let (code, err, file) = check(text);
+    assert_eq!(code, 1, "expected a rejection, got {code}: {err}");
+    let at = format!("{file}:{line}: ");
+    assert!(
+        err.lines().any(|l| l.contains(&at) && l.contains(phrase)),
+        "expected `{at}…{phrase}…` in:\n{err}"
+    );
+}
+
+#[test]
+fn a_sound_graph_passes() {
+    let (code, err, _) = check(
+        r#"
+[[component]]
+name = "talker"
+binary = "@FIXTURE@"
+args = ["--role", "talker"]
+
+[[component]]
+name = "listener"
+binary = "@FIXTURE@"
+args = ["--role", "listener"]
+depends_on = ["talker"]
+"#,
+    );
+    assert_eq!(code, 0, "{err}");
+}
+
+#[test]
+fn an_unknown_key_is_an_error_at_its_line() {
+    assert_rejected(
+        "[[component]]\nname = \"a\"\nbinary = \"@FIXTURE@\"\nargz = [\"--role\", \"idle\"]\n",
+        4,
+        "unknown field `argz`",
+    );
+}
+
+#[test]
+fn an_unknown_binary_is_named() {
+    assert_rejected(
+        "\n[[component]]\nname = \"ghost\"\nbinary = \"no_such_robocog_component\"\n",
+        3,
+        "unknown binary \"no_such_robocog_component\"",
+    );
+}
+
+#[test]
+fn a_dependency_cycle_is_shown() {
+    assert_rejected(
+        r#"[[component]]
+name = "a"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+depends_on = ["b"]
+
+[[component]]
+name = "b"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+depends_on = ["a"]
+"#,
+        2,
+        "dependency cycle: a -> b -> a",
+    );
+}
+
+#[test]
+fn a_duplicate_name_points_at_both() {
+    assert_rejected(
+        r#"[[component]]
+name = "twin"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+
+[[component]]
+name = "twin"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+"#,
+        7,
+        "duplicate component name \"twin\" (first at ",
+    );
+}
+
+#[test]
+fn an_input_nobody_publishes_is_an_error() {
+    assert_rejected(
+        r#"[[component]]
+name = "lonely"
+binary = "@FIXTURE@"
+args = ["--role", "listener"]
+"#,
+        2,
+        "subscribes to \"chatter\" (robocog.Text), which no component of the graph publishes",
+    );
+}
+
+#[test]
+fn an_input_declared_external_is_accepted() {
+    let (code, err, _) = check(
+        r#"[[component]]
+name = "lonely"
+binary = "@FIXTURE@"
+args = ["--role", "listener"]
+external_inputs = ["chatter"]
+"#,
+    );
+    assert_eq!(code, 0, "{err}");
+}
+
+#[test]
+fn two_claims_of_one_port_are_an_error() {
+    assert_rejected(
+        r#"[[component]]
+name = "bridge_a"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+hardware = ["udp:65305"]
+
+[[component]]
+name = "bridge_b"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+hardware = ["udp:65305"]
+"#,
+        11,
+        "hardware \"udp:65305\" is claimed by both \"bridge_a\"",
+    );
+}
+
+#[test]
+fn an_unknown_dependency_and_an_unknown_variable_are_errors() {
+    assert_rejected(
+        r#"[[component]]
+name = "a"
+binary = "@FIXTURE@"
+args = ["--role", "${role}"]
+depends_on = ["nobody"]
+"#,
+        5,
+        "depends on \"nobody\", which is not in the graph",
+    );
+    assert_rejected(
+        r#"[[component]]
+name = "a"
+binary = "@FIXTURE@"
+args = ["--role", "${role}"]
+"#,
+        2,
+        "unknown variable ${role}",
+    );
+}
+
+#[test]
+fn profiles_and_set_choose_the_arguments() {
+    let ns = unique_namespace("profiles");
+    let dir = scratch(&ns);
+    let m = write_manifest(
+        &dir,
+        "graph.toml",
+        r#"
+[vars]
+role = "nonsense"
+
+[profiles.good]
+role = "idle"
+
+[[component]]
+name = "a"
+binary = "@FIXTURE@"
+args = ["--role", "${role}"]
+"#,
+    );
+    let m = m.display().to_string();
+    let robocog = bin("robocog");
+    let t = Duration::from_secs(30);
+    // With the default variable, the binary cannot describe itself: a warning, not an error.
+    let plain = run(&robocog, &["check".into(), m.clone()], t);
+    assert!(String::from_utf8_lossy(&plain.stderr).contains("cannot describe"));
+    let profiled = run(&robocog, &["check".into(), m.clone(), "--profile".into(), "good".into()], t);
+    assert!(profiled.status.success());
+    assert!(!String::from_utf8_lossy(&profiled.stderr).contains("cannot describe"));
+    let set = run(&robocog, &["check".into(), m.clone(), "--set".into(), "role=talker".into()], t);
+    assert!(set.status.success());
+    let bad = run(&robocog, &["check".into(), m, "--profile".into(), "nope".into()], t);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown profile \"nope\""));
+}
+
+#[test]
+fn errors_in_an_included_file_name_that_file() {
+    let ns = unique_namespace("include");
+    let dir = scratch(&ns);
+    let inc = write_manifest(&dir, "part.toml", "[[component]]\nname = \"x\"\nbinary = \"@FIXTURE@\"\nrestart = \"sometimes\"\n");
+    let top = write_manifest(&dir, "top.toml", "include = [\"part.toml\"]\n");
+    let out = run(&bin("robocog"), &["check".into(), top.display().to_string()], Duration::from_secs(30));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(err.contains(&format!("{}:4: ", inc.display())), "{err}");
+}
