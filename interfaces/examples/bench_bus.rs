@@ -33,24 +33,10 @@ struct Lat {
 
 fn summarise(mut one_way_us: Vec<f64>) -> Lat {
     one_way_us.sort_by(|a, b| a.total_cmp(b));
-    Lat { p50_us: pct(&one_way_us, 0.5), p99_us: pct(&one_way_us, 0.99) }
-}
-
-async fn router() -> anyhow::Result<(zenoh::Session, String)> {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"router\"").map_err(|e| anyhow::anyhow!("{e}"))?;
-    c.insert_json5("scouting/multicast/enabled", "false").map_err(|e| anyhow::anyhow!("{e}"))?;
-    c.insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let s = zenoh::open(c).await.map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ep = s
-        .info()
-        .locators()
-        .await
-        .into_iter()
-        .map(|l| l.to_string())
-        .find(|l| l.starts_with("tcp/"))
-        .ok_or_else(|| anyhow::anyhow!("router has no tcp locator"))?;
-    Ok((s, ep))
+    Lat {
+        p50_us: pct(&one_way_us, 0.5),
+        p99_us: pct(&one_way_us, 0.99),
+    }
 }
 
 /// Typed ping-pong with `Ping` messages of `size` bytes of data.
@@ -67,7 +53,10 @@ async fn typed_ping(a: &Bus, b: &Bus, size: usize, n: usize) -> anyhow::Result<L
     let ping_pub = a.publisher(&topics::BENCH_PING).await?;
     let pong_sub = a.subscriber(&topics::BENCH_PONG).await?;
     tokio::time::sleep(Duration::from_millis(300)).await;
-    let mut msg = Ping { data: vec![0xab; size], ..Default::default() };
+    let mut msg = Ping {
+        data: vec![0xab; size],
+        ..Default::default()
+    };
     let warm = (n / 10).max(5);
     let mut samples = Vec::with_capacity(n);
     for i in 0..n + warm {
@@ -100,7 +89,16 @@ async fn typed_frame(a: &Bus, b: &Bus, n: usize) -> anyhow::Result<Lat> {
     let publisher = a.publisher(&topics::BENCH_FRAME).await?;
     let back = a.subscriber(&topics::BENCH_FRAME_BACK).await?;
     tokio::time::sleep(Duration::from_millis(300)).await;
-    let mut frame = RgbdFrame::blank(640, 480, Intrinsics { fx: 525.0, fy: 525.0, cx: 319.5, cy: 239.5 });
+    let mut frame = RgbdFrame::blank(
+        640,
+        480,
+        Intrinsics {
+            fx: 525.0,
+            fy: 525.0,
+            cx: 319.5,
+            cy: 239.5,
+        },
+    );
     frame.header.frame_id = "head_rgbd_optical_frame".into();
     let warm = (n / 10).max(5);
     let mut samples = Vec::with_capacity(n);
@@ -121,7 +119,12 @@ async fn typed_frame(a: &Bus, b: &Bus, n: usize) -> anyhow::Result<Lat> {
 }
 
 /// Raw zenoh ping-pong of `size` bytes: `put` and plain subscribers.
-async fn raw_ping(a: &zenoh::Session, b: &zenoh::Session, size: usize, n: usize) -> anyhow::Result<Lat> {
+async fn raw_ping(
+    a: &zenoh::Session,
+    b: &zenoh::Session,
+    size: usize,
+    n: usize,
+) -> anyhow::Result<Lat> {
     let e = |e: zenoh::Error| anyhow::anyhow!("{e}");
     let ping_key = format!("raw/bench/ping/{size}");
     let pong_key = format!("raw/bench/pong/{size}");
@@ -188,13 +191,18 @@ async fn raw_throughput(a: &zenoh::Session, b: &zenoh::Session, n: u64) -> anyho
     }
     let end = Instant::now();
     let got = count.load(Ordering::Relaxed);
-    let start = first.lock().unwrap_or_else(|p| p.into_inner()).unwrap_or(end);
+    let start = first
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .unwrap_or(end);
     Ok(got as f64 / end.duration_since(start).as_secs_f64().max(1e-9))
 }
 
 /// Messages per second, typed `Counter64`, received through a typed subscriber.
 async fn typed_throughput(a: &Bus, b: &Bus, n: u64) -> anyhow::Result<f64> {
-    let sub = b.subscriber_named::<Counter64>(topics::BENCH_COUNT.name(), 65536).await?;
+    let sub = b
+        .subscriber_named::<Counter64>(topics::BENCH_COUNT.name(), 65536)
+        .await?;
     let counter = tokio::spawn(async move {
         let mut got = 0u64;
         let mut start = None;
@@ -225,7 +233,7 @@ async fn typed_throughput(a: &Bus, b: &Bus, n: u64) -> anyhow::Result<f64> {
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() -> anyhow::Result<()> {
     let quick = std::env::args().any(|a| a == "--quick");
-    let (_router, endpoint) = router().await?;
+    let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0").await?;
     let ns = format!("bench-{}", std::process::id());
     let args = ConnectArgs::to_router(&endpoint, &ns);
     let a = Bus::open(&args, "bench-sender").await?;
@@ -233,8 +241,11 @@ async fn main() -> anyhow::Result<()> {
     eprintln!("bus benchmark: router {endpoint}, namespace {ns}");
 
     let scale = if quick { 10 } else { 1 };
-    let cases: [(&str, usize, usize); 3] =
-        [("64B", 64, 5000 / scale), ("4KiB", 4096, 3000 / scale), ("1MiB", 1 << 20, 300 / scale)];
+    let cases: [(&str, usize, usize); 3] = [
+        ("64B", 64, 5000 / scale),
+        ("4KiB", 4096, 3000 / scale),
+        ("1MiB", 1 << 20, 300 / scale),
+    ];
     let mut rows = Vec::new();
     let mut json = serde_json::Map::new();
     for (label, size, n) in cases {
@@ -245,7 +256,10 @@ async fn main() -> anyhow::Result<()> {
         json.insert(format!("typed_{label}_p99_us"), t.p99_us.into());
         json.insert(format!("raw_{label}_p50_us"), r.p50_us.into());
         json.insert(format!("raw_{label}_p99_us"), r.p99_us.into());
-        json.insert(format!("ratio_{label}_p50_typed_over_raw"), (t.p50_us / r.p50_us).into());
+        json.insert(
+            format!("ratio_{label}_p50_typed_over_raw"),
+            (t.p50_us / r.p50_us).into(),
+        );
         rows.push((label.to_string(), t, r));
     }
     let n_frames = 300 / scale;
@@ -256,7 +270,10 @@ async fn main() -> anyhow::Result<()> {
     json.insert("typed_rgbd_p99_us".into(), t.p99_us.into());
     json.insert("raw_rgbd_p50_us".into(), r.p50_us.into());
     json.insert("raw_rgbd_p99_us".into(), r.p99_us.into());
-    json.insert("ratio_rgbd_p50_typed_over_raw".into(), (t.p50_us / r.p50_us).into());
+    json.insert(
+        "ratio_rgbd_p50_typed_over_raw".into(),
+        (t.p50_us / r.p50_us).into(),
+    );
     rows.push(("RGB-D 640x480".into(), t, r));
 
     let n_tp = 1_000_000 / scale as u64;
@@ -265,10 +282,15 @@ async fn main() -> anyhow::Result<()> {
     let typed_tp = typed_throughput(&a, &b, n_tp).await?;
     json.insert("raw_8B_msgs_per_s".into(), raw_tp.into());
     json.insert("typed_8B_msgs_per_s".into(), typed_tp.into());
-    json.insert("ratio_throughput_typed_over_raw".into(), (typed_tp / raw_tp).into());
+    json.insert(
+        "ratio_throughput_typed_over_raw".into(),
+        (typed_tp / raw_tp).into(),
+    );
 
     println!();
-    println!("| payload | typed p50 µs | typed p99 µs | raw zenoh p50 µs | raw zenoh p99 µs | typed/raw p50 |");
+    println!(
+        "| payload | typed p50 µs | typed p99 µs | raw zenoh p50 µs | raw zenoh p99 µs | typed/raw p50 |"
+    );
     println!("|---|---:|---:|---:|---:|---:|");
     for (label, t, r) in &rows {
         println!(
@@ -288,8 +310,16 @@ async fn main() -> anyhow::Result<()> {
     println!();
     println!(
         "targets: typed small-message latency within 1.2x of raw ({}), RGB-D p50 under 2 ms ({}), 8-byte throughput at least 1M msg/s (typed {}, raw {})",
-        if rows[0].1.p50_us / rows[0].2.p50_us <= 1.2 { "met" } else { "NOT met" },
-        if rows[3].1.p50_us < 2000.0 { "met" } else { "NOT met" },
+        if rows[0].1.p50_us / rows[0].2.p50_us <= 1.2 {
+            "met"
+        } else {
+            "NOT met"
+        },
+        if rows[3].1.p50_us < 2000.0 {
+            "met"
+        } else {
+            "NOT met"
+        },
         if typed_tp >= 1e6 { "met" } else { "NOT met" },
         if raw_tp >= 1e6 { "met" } else { "NOT met" },
     );

@@ -441,7 +441,10 @@ impl Bus {
                 Err(e) => {
                     let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
                     if why.eq_ignore_ascii_case("timeout") {
-                        Err(CallError::Timeout { service: name.to_string(), timeout })
+                        Err(CallError::Timeout {
+                            service: name.to_string(),
+                            timeout,
+                        })
                     } else {
                         Err(CallError::Zenoh(why))
                     }

@@ -25,6 +25,7 @@ pub mod liveliness;
 pub mod msg;
 pub mod node;
 pub mod ratelimit;
+pub mod router;
 pub mod topic;
 pub mod topics;
 

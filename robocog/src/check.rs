@@ -35,7 +35,10 @@ pub fn describe(binary: &Path, args: &[String], timeout: Duration) -> Result<Int
             Ok(None) if started.elapsed() > timeout => {
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(format!("`{} --describe` did not answer within {timeout:?}", binary.display()));
+                return Err(format!(
+                    "`{} --describe` did not answer within {timeout:?}",
+                    binary.display()
+                ));
             }
             Ok(None) => std::thread::sleep(Duration::from_millis(10)),
             Err(e) => return Err(e.to_string()),
@@ -67,7 +70,11 @@ pub fn check(manifest: &Manifest) -> Result<Report, Problems> {
                     "unknown binary {:?} for component {:?}: not next to robocog, not on PATH{}",
                     c.binary,
                     c.name,
-                    if c.binary.contains('/') { ", not at that path" } else { "" }
+                    if c.binary.contains('/') {
+                        ", not at that path"
+                    } else {
+                        ""
+                    }
                 ),
             }),
             Some(path) => match describe(&path, &c.args, Duration::from_secs(10)) {
@@ -86,23 +93,35 @@ pub fn check(manifest: &Manifest) -> Result<Report, Problems> {
     let mut servers: HashMap<&str, Vec<(&str, &str)>> = HashMap::new();
     for (name, i) in &report.interfaces {
         for p in &i.publishes {
-            publishers.entry(&p.name).or_default().push((name, &p.type_name));
+            publishers
+                .entry(&p.name)
+                .or_default()
+                .push((name, &p.type_name));
         }
         for s in &i.serves {
-            servers.entry(&s.name).or_default().push((name, &s.type_name));
+            servers
+                .entry(&s.name)
+                .or_default()
+                .push((name, &s.type_name));
         }
     }
     let origin_of = |name: &str| -> Origin {
-        manifest.component(name).map(|c| c.origin.clone()).unwrap_or(Origin {
-            file: manifest.file.clone(),
-            line: 0,
-        })
+        manifest
+            .component(name)
+            .map(|c| c.origin.clone())
+            .unwrap_or(Origin {
+                file: manifest.file.clone(),
+                line: 0,
+            })
     };
     let mut names: Vec<&String> = report.interfaces.keys().collect();
     names.sort();
     for name in names {
         let i = &report.interfaces[name];
-        let external = manifest.component(name).map(|c| c.external_inputs.as_slice()).unwrap_or(&[]);
+        let external = manifest
+            .component(name)
+            .map(|c| c.external_inputs.as_slice())
+            .unwrap_or(&[]);
         for s in &i.subscribes {
             match publishers.get(s.name.as_str()) {
                 None if external.contains(&s.name) => {}
@@ -165,5 +184,9 @@ pub fn check(manifest: &Manifest) -> Result<Report, Problems> {
             }
         }
     }
-    if problems.is_empty() { Ok(report) } else { Err(Problems(problems)) }
+    if problems.is_empty() {
+        Ok(report)
+    } else {
+        Err(Problems(problems))
+    }
 }

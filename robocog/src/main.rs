@@ -28,7 +28,11 @@ fn main() -> ExitCode {
     if let Verb::Check(args) = cli.verb {
         return ExitCode::from(command::check::execute(args) as u8);
     }
-    let runtime = match tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build() {
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");

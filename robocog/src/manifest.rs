@@ -212,7 +212,9 @@ pub struct Overrides {
 
 /// Parse `key=value`.
 pub fn parse_set(s: &str) -> Result<(String, String), String> {
-    let (k, v) = s.split_once('=').ok_or_else(|| format!("expected key=value, got {s:?}"))?;
+    let (k, v) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected key=value, got {s:?}"))?;
     if k.is_empty() {
         return Err(format!("empty key in {s:?}"));
     }
@@ -220,7 +222,11 @@ pub fn parse_set(s: &str) -> Result<(String, String), String> {
 }
 
 fn line_of(src: &str, offset: usize) -> usize {
-    src[..offset.min(src.len())].bytes().filter(|&b| b == b'\n').count() + 1
+    src[..offset.min(src.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
 }
 
 struct Loaded {
@@ -236,26 +242,38 @@ fn load_tree(
     problems: &mut Vec<Problem>,
     from: Option<Origin>,
 ) {
-    let at = |line| Origin { file: path.to_path_buf(), line };
+    let at = |line| Origin {
+        file: path.to_path_buf(),
+        line,
+    };
     let src = match std::fs::read_to_string(path) {
         Ok(s) => s,
         Err(e) => {
             let origin = from.unwrap_or_else(|| at(0));
-            problems.push(Problem { origin, message: format!("cannot read {}: {e}", path.display()) });
+            problems.push(Problem {
+                origin,
+                message: format!("cannot read {}: {e}", path.display()),
+            });
             return;
         }
     };
     let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
     if stack.contains(&canonical) {
         let origin = from.unwrap_or_else(|| at(0));
-        problems.push(Problem { origin, message: format!("include cycle through {}", path.display()) });
+        problems.push(Problem {
+            origin,
+            message: format!("include cycle through {}", path.display()),
+        });
         return;
     }
     let raw: RawManifest = match toml::from_str(&src) {
         Ok(r) => r,
         Err(e) => {
             let line = e.span().map_or(0, |s| line_of(&src, s.start));
-            problems.push(Problem { origin: at(line), message: e.message().trim().to_string() });
+            problems.push(Problem {
+                origin: at(line),
+                message: e.message().trim().to_string(),
+            });
             return;
         }
     };
@@ -267,7 +285,11 @@ fn load_tree(
         load_tree(&child, stack, out, problems, Some(origin));
     }
     stack.pop();
-    out.push(Loaded { file: path.to_path_buf(), src, raw });
+    out.push(Loaded {
+        file: path.to_path_buf(),
+        src,
+        raw,
+    });
 }
 
 fn substitute(s: &str, vars: &BTreeMap<String, String>) -> Result<String, String> {
@@ -276,7 +298,9 @@ fn substitute(s: &str, vars: &BTreeMap<String, String>) -> Result<String, String
     while let Some(i) = rest.find("${") {
         out.push_str(&rest[..i]);
         let after = &rest[i + 2..];
-        let end = after.find('}').ok_or_else(|| format!("unclosed ${{ in {s:?}"))?;
+        let end = after
+            .find('}')
+            .ok_or_else(|| format!("unclosed ${{ in {s:?}"))?;
         let name = &after[..end];
         let value = vars.get(name).ok_or_else(|| {
             let known: Vec<&str> = vars.keys().map(String::as_str).collect();
@@ -301,7 +325,10 @@ impl Manifest {
             return Err(Problems(problems));
         }
         let top = path.to_path_buf();
-        let at_top = |line| Origin { file: top.clone(), line };
+        let at_top = |line| Origin {
+            file: top.clone(),
+            line,
+        };
 
         // Graph settings: the top file wins over includes.
         let (mut name, mut namespace, mut router) = (None, None, None);
@@ -349,7 +376,10 @@ impl Manifest {
                 let sub = |s: &str| match substitute(s, &vars) {
                     Ok(v) => v,
                     Err(message) => {
-                        sub_errors.borrow_mut().push(Problem { origin: origin.clone(), message });
+                        sub_errors.borrow_mut().push(Problem {
+                            origin: origin.clone(),
+                            message,
+                        });
                         s.to_string()
                     }
                 };
@@ -426,7 +456,10 @@ impl Manifest {
             }
         }
         if components.is_empty() && problems.is_empty() {
-            problems.push(Problem { origin: at_top(0), message: "the graph has no [[component]]".into() });
+            problems.push(Problem {
+                origin: at_top(0),
+                message: "the graph has no [[component]]".into(),
+            });
         }
 
         // Two components claiming one hardware port.
@@ -451,7 +484,8 @@ impl Manifest {
 
         let manifest = Manifest {
             name: name.unwrap_or_else(|| {
-                path.file_stem().map_or("graph".into(), |s| s.to_string_lossy().into_owned())
+                path.file_stem()
+                    .map_or("graph".into(), |s| s.to_string_lossy().into_owned())
             }),
             namespace,
             router,
@@ -462,14 +496,22 @@ impl Manifest {
         if let Err(cycle) = manifest.start_order() {
             problems.push(cycle);
         }
-        if problems.is_empty() { Ok(manifest) } else { Err(Problems(problems)) }
+        if problems.is_empty() {
+            Ok(manifest)
+        } else {
+            Err(Problems(problems))
+        }
     }
 
     /// The components in an order where each comes after its dependencies, or the cycle that
     /// prevents one.
     pub fn start_order(&self) -> Result<Vec<&Component>, Problem> {
-        let index: HashMap<&str, usize> =
-            self.components.iter().enumerate().map(|(i, c)| (c.name.as_str(), i)).collect();
+        let index: HashMap<&str, usize> = self
+            .components
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.name.as_str(), i))
+            .collect();
         // 0 = unvisited, 1 = on the stack, 2 = done.
         let mut state = vec![0u8; self.components.len()];
         let mut order = Vec::new();
@@ -487,8 +529,10 @@ impl Manifest {
             }
             if state[i] == 1 {
                 let start = stack.iter().position(|&s| s == i).unwrap_or(0);
-                let mut names: Vec<&str> =
-                    stack[start..].iter().map(|&s| m.components[s].name.as_str()).collect();
+                let mut names: Vec<&str> = stack[start..]
+                    .iter()
+                    .map(|&s| m.components[s].name.as_str())
+                    .collect();
                 names.push(&m.components[i].name);
                 return Err(Problem {
                     origin: m.components[i].origin.clone(),
@@ -530,7 +574,10 @@ impl Component {
 pub fn resolve_binary(binary: &str, dir: &Path) -> Option<PathBuf> {
     let is_exec = |p: &Path| {
         use std::os::unix::fs::PermissionsExt;
-        p.is_file() && p.metadata().map(|m| m.permissions().mode() & 0o111 != 0).unwrap_or(false)
+        p.is_file()
+            && p.metadata()
+                .map(|m| m.permissions().mode() & 0o111 != 0)
+                .unwrap_or(false)
     };
     if binary.contains('/') {
         let p = dir.join(binary);

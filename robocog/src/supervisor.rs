@@ -33,10 +33,21 @@ const MAX_BACKOFF: Duration = Duration::from_secs(30);
 
 #[derive(Debug)]
 enum Event {
-    Up { name: String, pid: u32 },
-    Exited { name: String, generation: u64, status: Option<ExitStatus> },
-    RestartDue { name: String },
-    Stop { reason: String },
+    Up {
+        name: String,
+        pid: u32,
+    },
+    Exited {
+        name: String,
+        generation: u64,
+        status: Option<ExitStatus>,
+    },
+    RestartDue {
+        name: String,
+    },
+    Stop {
+        reason: String,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +75,10 @@ struct Child {
 
 fn prefix(name: &str, width: usize, index: usize, color: bool) -> String {
     if color {
-        format!("\x1b[{}m{name:>width$}\x1b[0m |", PALETTE[index % PALETTE.len()])
+        format!(
+            "\x1b[{}m{name:>width$}\x1b[0m |",
+            PALETTE[index % PALETTE.len()]
+        )
     } else {
         format!("{name:>width$} |")
     }
@@ -105,24 +119,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         .collect();
 
     // The router every component joins.
-    let mut config = zenoh::Config::default();
-    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v).map_err(|e| anyhow::anyhow!("router config {k}: {e}"))
-    };
-    set(&mut config, "mode", "\"router\"")?;
-    set(&mut config, "scouting/multicast/enabled", "false")?;
-    set(&mut config, "listen/endpoints", &serde_json::to_string(&[&opts.router])?)?;
-    let router = zenoh::open(config)
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot start the router on {}: {e}", opts.router))?;
-    let endpoint = router
-        .info()
-        .locators()
-        .await
-        .into_iter()
-        .map(|l| l.to_string())
-        .find(|l| l.starts_with("tcp/"))
-        .ok_or_else(|| anyhow::anyhow!("the router listens on no TCP endpoint"))?;
+    let (router, endpoint) = interfaces::router::open_router(&opts.router).await?;
     let connect = interfaces::ConnectArgs::to_router(&endpoint, &opts.namespace);
     say(format!(
         "graph {:?}: router {endpoint}, namespace {}, {} components",
@@ -163,20 +160,31 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         let tx = tx.clone();
         tokio::spawn(async move {
             use tokio::signal::unix::{SignalKind, signal};
-            let (Ok(mut term), Ok(mut int)) =
-                (signal(SignalKind::terminate()), signal(SignalKind::interrupt()))
-            else {
+            let (Ok(mut term), Ok(mut int)) = (
+                signal(SignalKind::terminate()),
+                signal(SignalKind::interrupt()),
+            ) else {
                 return;
             };
             let reason = tokio::select! {
                 _ = term.recv() => "SIGTERM",
                 _ = int.recv() => "interrupted",
             };
-            let _ = tx.send(Event::Stop { reason: reason.into() }).await;
+            let _ = tx
+                .send(Event::Stop {
+                    reason: reason.into(),
+                })
+                .await;
         });
     }
 
-    let width = manifest.components.iter().map(|c| c.name.len()).max().unwrap_or(8).max(7);
+    let width = manifest
+        .components
+        .iter()
+        .map(|c| c.name.len())
+        .max()
+        .unwrap_or(8)
+        .max(7);
     let mut children: HashMap<String, Child> = HashMap::new();
     for (i, c) in manifest.components.iter().enumerate() {
         let binary = c
@@ -207,13 +215,17 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             let ready = {
                 let c = &children[name];
                 c.state == State::Pending
-                    && c.spec.depends_on.iter().all(|d| children.get(d).is_some_and(|d| d.state == State::Up))
+                    && c.spec
+                        .depends_on
+                        .iter()
+                        .all(|d| children.get(d).is_some_and(|d| d.state == State::Up))
             };
-            if ready && let Some(c) = children.get_mut(name) {
-                if let Err(e) = spawn(c, &connect, &tx) {
-                    say(format!("cannot start {name}: {e:#}"));
-                    exit_code = Some(1);
-                }
+            if ready
+                && let Some(c) = children.get_mut(name)
+                && let Err(e) = spawn(c, &connect, &tx)
+            {
+                say(format!("cannot start {name}: {e:#}"));
+                exit_code = Some(1);
             }
         }
         if exit_code.is_some() {
@@ -236,8 +248,14 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     ));
                 }
             }
-            Some(Event::Exited { name, generation, status }) => {
-                let Some(c) = children.get_mut(&name) else { continue };
+            Some(Event::Exited {
+                name,
+                generation,
+                status,
+            }) => {
+                let Some(c) = children.get_mut(&name) else {
+                    continue;
+                };
                 if c.generation != generation {
                     continue;
                 }
@@ -281,7 +299,9 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                         ));
                         exit_code = Some(1);
                     } else {
-                        say(format!("{name} failed for good ({what}); it is not required, the graph goes on{tail}"));
+                        say(format!(
+                            "{name} failed for good ({what}); it is not required, the graph goes on{tail}"
+                        ));
                     }
                 } else {
                     c.state = State::Exited;
@@ -385,12 +405,31 @@ fn spawn(
     c.generation += 1;
     c.pid = Some(pid);
     c.started = Instant::now();
-    c.state = State::Starting { deadline: Instant::now() + c.spec.ready_timeout };
-    say(format!("started {} (pid {pid}): {} {}", c.spec.name, c.binary.display(), c.spec.args.join(" ")));
+    c.state = State::Starting {
+        deadline: Instant::now() + c.spec.ready_timeout,
+    };
+    say(format!(
+        "started {} (pid {pid}): {} {}",
+        c.spec.name,
+        c.binary.display(),
+        c.spec.args.join(" ")
+    ));
 
     for (stream, to_stderr) in [
-        (child.stdout.take().map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>), false),
-        (child.stderr.take().map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>), true),
+        (
+            child
+                .stdout
+                .take()
+                .map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
+            false,
+        ),
+        (
+            child
+                .stderr
+                .take()
+                .map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
+            true,
+        ),
     ] {
         let Some(stream) = stream else { continue };
         let prefix = c.prefix.clone();
@@ -421,7 +460,13 @@ fn spawn(
     tokio::spawn(async move {
         let status = child.wait().await.ok();
         let _ = exit_tx.send(Some(status));
-        let _ = tx.send(Event::Exited { name, generation, status }).await;
+        let _ = tx
+            .send(Event::Exited {
+                name,
+                generation,
+                status,
+            })
+            .await;
     });
     Ok(())
 }
@@ -433,7 +478,12 @@ async fn stop_all(manifest: &Manifest, children: &mut HashMap<String, Child>) {
     let mut depth: HashMap<String, usize> = HashMap::new();
     if let Ok(order) = manifest.start_order() {
         for c in order {
-            let d = c.depends_on.iter().filter_map(|d| depth.get(d)).max().map_or(0, |d| d + 1);
+            let d = c
+                .depends_on
+                .iter()
+                .filter_map(|d| depth.get(d))
+                .max()
+                .map_or(0, |d| d + 1);
             depth.insert(c.name.clone(), d);
         }
     }
@@ -448,24 +498,34 @@ async fn stop_all(manifest: &Manifest, children: &mut HashMap<String, Child>) {
             if let Some(pid) = c.pid.take() {
                 groups.push(pid);
                 let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGTERM);
-                waiting.push((c.spec.name.clone(), pid, c.spec.stop_timeout, c.exit.clone()));
+                waiting.push((
+                    c.spec.name.clone(),
+                    pid,
+                    c.spec.stop_timeout,
+                    c.exit.clone(),
+                ));
             }
         }
-        let waits = waiting.into_iter().map(|(name, pid, grace, exit)| async move {
-            let Some(mut exit) = exit else { return };
-            let done = tokio::time::timeout(grace, async {
-                let _ = exit.wait_for(|s| s.is_some()).await.map(|_| ());
-            })
-            .await;
-            if done.is_err() {
-                say(format!("{name} ignored SIGTERM for {:.1} s: SIGKILL", grace.as_secs_f64()));
-                let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGKILL);
-                let _ = tokio::time::timeout(Duration::from_secs(5), async {
+        let waits = waiting
+            .into_iter()
+            .map(|(name, pid, grace, exit)| async move {
+                let Some(mut exit) = exit else { return };
+                let done = tokio::time::timeout(grace, async {
                     let _ = exit.wait_for(|s| s.is_some()).await.map(|_| ());
                 })
                 .await;
-            }
-        });
+                if done.is_err() {
+                    say(format!(
+                        "{name} ignored SIGTERM for {:.1} s: SIGKILL",
+                        grace.as_secs_f64()
+                    ));
+                    let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGKILL);
+                    let _ = tokio::time::timeout(Duration::from_secs(5), async {
+                        let _ = exit.wait_for(|s| s.is_some()).await.map(|_| ());
+                    })
+                    .await;
+                }
+            });
         futures_join_all(waits).await;
     }
     // Anything a component left in its group goes too.

@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used)] // test support: a panic is how a test fails
 //! Helpers for the process-and-bus tests: find the built binaries, give every test a fresh
 //! namespace and a router on a free port, and wait for things with a time-out, always.
 
@@ -31,7 +32,11 @@ pub fn unique_namespace(tag: &str) -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.subsec_nanos())
         .unwrap_or(0);
-    format!("test-{tag}-{}-{}-{nanos}", std::process::id(), N.fetch_add(1, Ordering::Relaxed))
+    format!(
+        "test-{tag}-{}-{}-{nanos}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    )
 }
 
 /// A scratch folder for one test.
@@ -45,7 +50,11 @@ pub fn scratch(ns: &str) -> PathBuf {
 pub fn write_manifest(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     let fixture = bin("fixture_node");
-    std::fs::write(&p, text.replace("@FIXTURE@", &fixture.display().to_string())).expect("write manifest");
+    std::fs::write(
+        &p,
+        text.replace("@FIXTURE@", &fixture.display().to_string()),
+    )
+    .expect("write manifest");
     p
 }
 
@@ -84,7 +93,10 @@ impl Lines {
             }
             let now = Instant::now();
             if now >= deadline {
-                panic!("timed out after {timeout:?} waiting for {what}; output so far:\n{}", lines.join("\n"));
+                panic!(
+                    "timed out after {timeout:?} waiting for {what}; output so far:\n{}",
+                    lines.join("\n")
+                );
             }
             lines = cv.wait_timeout(lines, deadline - now).unwrap().0;
         }
@@ -101,7 +113,10 @@ impl Lines {
             }
             let now = Instant::now();
             if now >= deadline {
-                panic!("timed out after {timeout:?} waiting for {what}; output so far:\n{}", lines.join("\n"));
+                panic!(
+                    "timed out after {timeout:?} waiting for {what}; output so far:\n{}",
+                    lines.join("\n")
+                );
             }
             lines = cv.wait_timeout(lines, deadline - now).unwrap().0;
         }
@@ -109,7 +124,13 @@ impl Lines {
 
     /// How many lines satisfy `pred` now.
     pub fn count(&self, pred: impl Fn(&str) -> bool) -> usize {
-        self.inner.0.lock().unwrap().iter().filter(|l| pred(l)).count()
+        self.inner
+            .0
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|l| pred(l))
+            .count()
     }
 }
 
@@ -126,7 +147,14 @@ impl Launch {
         let mut child = Command::new(bin("robocog"))
             .arg("launch")
             .arg(manifest)
-            .args(["--namespace", namespace, "--router", "tcp/127.0.0.1:0", "--color", "never"])
+            .args([
+                "--namespace",
+                namespace,
+                "--router",
+                "tcp/127.0.0.1:0",
+                "--color",
+                "never",
+            ])
             .args(extra)
             .env("RUST_LOG", "info")
             .stdin(Stdio::null())
@@ -140,19 +168,32 @@ impl Launch {
         let line = lines.wait_for("the router line", Duration::from_secs(20), |l| {
             l.contains(": router tcp/") || l.starts_with("error: ")
         });
-        assert!(!line.starts_with("error: "), "the launcher refused the graph: {line}");
+        assert!(
+            !line.starts_with("error: "),
+            "the launcher refused the graph: {line}"
+        );
         let endpoint = line
             .split("router ")
             .nth(1)
             .and_then(|s| s.split(',').next())
             .expect("router endpoint")
             .to_string();
-        Launch { child, namespace: namespace.to_string(), endpoint, lines }
+        Launch {
+            child,
+            namespace: namespace.to_string(),
+            endpoint,
+            lines,
+        }
     }
 
     /// Connection flags for a tool or a test's own bus to join this graph.
     pub fn connect_flags(&self) -> Vec<String> {
-        vec!["--namespace".into(), self.namespace.clone(), "--connect".into(), self.endpoint.clone()]
+        vec![
+            "--namespace".into(),
+            self.namespace.clone(),
+            "--connect".into(),
+            self.endpoint.clone(),
+        ]
     }
 
     pub fn connect_args(&self) -> interfaces::ConnectArgs {
@@ -167,7 +208,10 @@ impl Launch {
     /// Wait for the launcher to exit, at most `timeout`.
     pub fn wait_exit(&mut self, timeout: Duration) -> ExitStatus {
         wait_child(&mut self.child, timeout).unwrap_or_else(|| {
-            panic!("launcher still running after {timeout:?}; output:\n{}", self.lines.all().join("\n"))
+            panic!(
+                "launcher still running after {timeout:?}; output:\n{}",
+                self.lines.all().join("\n")
+            )
         })
     }
 
@@ -190,13 +234,21 @@ impl Drop for Launch {
 
 /// Send a signal by name (`TERM`, `KILL`) with kill(1).
 pub fn signal(pid: u32, sig: &str) {
-    let _ = Command::new("kill").arg(format!("-{sig}")).arg(pid.to_string()).status();
+    let _ = Command::new("kill")
+        .arg(format!("-{sig}"))
+        .arg(pid.to_string())
+        .status();
 }
 
 /// Whether process `pid` exists (and is not a zombie).
 pub fn alive(pid: u32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        Ok(stat) => !stat.rsplit(')').next().unwrap_or("").trim_start().starts_with('Z'),
+        Ok(stat) => !stat
+            .rsplit(')')
+            .next()
+            .unwrap_or("")
+            .trim_start()
+            .starts_with('Z'),
         Err(_) => false,
     }
 }
@@ -255,7 +307,10 @@ pub fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Optio
         if let Some(v) = f() {
             return v;
         }
-        assert!(Instant::now() < deadline, "timed out after {timeout:?} waiting for {what}");
+        assert!(
+            Instant::now() < deadline,
+            "timed out after {timeout:?} waiting for {what}"
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
 }

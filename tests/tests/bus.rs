@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used)]
 //! The typed bus between real processes, over the launcher's router.
 
 use interfaces::msg::std_msgs::Text;
@@ -22,14 +23,22 @@ fn two_components_exchange_typed_messages() {
     let ns = unique_namespace("exchange");
     let m = write_manifest(&scratch(&ns), "graph.toml", TALK_AND_LISTEN);
     let launch = Launch::start(&m, &ns, &[]);
-    let line = launch.lines.wait_for("a typed message at the listener", Duration::from_secs(20), |l| {
-        l.contains("listener |") && l.contains("received: hello")
-    });
+    let line = launch.lines.wait_for(
+        "a typed message at the listener",
+        Duration::from_secs(20),
+        |l| l.contains("listener |") && l.contains("received: hello"),
+    );
     assert!(line.contains("(seq "), "{line}");
     // Messages keep flowing, in order.
-    launch.lines.wait_until("five messages", Duration::from_secs(10), |lines| {
-        lines.iter().filter(|l| l.contains("received: hello")).count() >= 5
-    });
+    launch
+        .lines
+        .wait_until("five messages", Duration::from_secs(10), |lines| {
+            lines
+                .iter()
+                .filter(|l| l.contains("received: hello"))
+                .count()
+                >= 5
+        });
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -46,16 +55,31 @@ args = ["--role", "echo-server", "--delay-ms", "300"]
 "#,
     );
     let launch = Launch::start(&m, &ns, &[]);
-    launch.lines.wait_for("echo up", Duration::from_secs(20), |l| l.contains("echo is up"));
-    let bus = Bus::open(&launch.connect_args(), "test-client").await.unwrap();
+    launch
+        .lines
+        .wait_for("echo up", Duration::from_secs(20), |l| {
+            l.contains("echo is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-client")
+        .await
+        .unwrap();
 
-    let req = Text { text: "ping".into(), ..Default::default() };
-    let rep = bus.call(&topics::ECHO, &req, Duration::from_secs(5)).await.unwrap();
+    let req = Text {
+        text: "ping".into(),
+        ..Default::default()
+    };
+    let rep = bus
+        .call(&topics::ECHO, &req, Duration::from_secs(5))
+        .await
+        .unwrap();
     assert_eq!(rep.text, "PING");
 
     // The server takes 300 ms: a 100 ms time-out expires, and says so.
     let started = std::time::Instant::now();
-    match bus.call(&topics::ECHO, &req, Duration::from_millis(100)).await {
+    match bus
+        .call(&topics::ECHO, &req, Duration::from_millis(100))
+        .await
+    {
         Err(CallError::Timeout { .. }) => {}
         other => panic!("expected a time-out, got {other:?}"),
     }
@@ -63,7 +87,10 @@ args = ["--role", "echo-server", "--delay-ms", "300"]
 
     // The handler's error comes back typed.
     let empty = Text::default();
-    match bus.call(&topics::ECHO, &empty, Duration::from_secs(5)).await {
+    match bus
+        .call(&topics::ECHO, &empty, Duration::from_secs(5))
+        .await
+    {
         Err(CallError::Remote(e)) => assert_eq!(e.code, ErrorCode::BadRequest),
         other => panic!("expected a BadRequest, got {other:?}"),
     }
@@ -73,7 +100,10 @@ args = ["--role", "echo-server", "--delay-ms", "300"]
     other.namespace = format!("{ns}-other");
     let lonely = Bus::open(&other, "test-client").await.unwrap();
     let started = std::time::Instant::now();
-    match lonely.call(&topics::ECHO, &req, Duration::from_secs(3)).await {
+    match lonely
+        .call(&topics::ECHO, &req, Duration::from_secs(3))
+        .await
+    {
         Err(CallError::NoServer(_)) | Err(CallError::Timeout { .. }) => {}
         other => panic!("expected no server, got {other:?}"),
     }
@@ -95,8 +125,14 @@ external_inputs = ["chatter"]
 "#,
     );
     let launch = Launch::start(&m, &ns, &[]);
-    launch.lines.wait_for("listener up", Duration::from_secs(20), |l| l.contains("listener is up"));
-    let bus = Bus::open(&launch.connect_args(), "test-prober").await.unwrap();
+    launch
+        .lines
+        .wait_for("listener up", Duration::from_secs(20), |l| {
+            l.contains("listener is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-prober")
+        .await
+        .unwrap();
     let diag = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
     let publisher = bus.publisher(&topics::CHATTER).await.unwrap();
     let key = bus.topic_key(topics::CHATTER.name());
@@ -104,21 +140,37 @@ external_inputs = ["chatter"]
     tokio::time::sleep(Duration::from_millis(500)).await;
 
     // Garbage, a wrong encapsulation, a truncated body: three bad payloads.
-    for bad in [vec![1u8, 2, 3], vec![0xde, 0xad, 0xbe, 0xef, 0, 0, 0, 0], vec![0, 1, 0, 0, 200, 0, 0]] {
+    for bad in [
+        vec![1u8, 2, 3],
+        vec![0xde, 0xad, 0xbe, 0xef, 0, 0, 0, 0],
+        vec![0, 1, 0, 0, 200, 0, 0],
+    ] {
         bus.session().put(&key, bad).await.unwrap();
     }
-    let mut good = Text { text: "after the garbage".into(), ..Default::default() };
+    let mut good = Text {
+        text: "after the garbage".into(),
+        ..Default::default()
+    };
     publisher.publish(&mut good).await.unwrap();
-    launch.lines.wait_for("the good message after the bad ones", Duration::from_secs(10), |l| {
-        l.contains("received: after the garbage")
-    });
-    let warned = launch.lines.wait_for("a drop warning", Duration::from_secs(5), |l| l.contains("dropped a payload"));
+    launch.lines.wait_for(
+        "the good message after the bad ones",
+        Duration::from_secs(10),
+        |l| l.contains("received: after the garbage"),
+    );
+    let warned = launch
+        .lines
+        .wait_for("a drop warning", Duration::from_secs(5), |l| {
+            l.contains("dropped a payload")
+        });
     assert!(warned.contains("chatter"), "{warned}");
 
     // The listener's diagnostics count the three drops.
     let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
     loop {
-        let d = tokio::time::timeout_at(deadline, diag.recv()).await.expect("diagnostics in time").unwrap();
+        let d = tokio::time::timeout_at(deadline, diag.recv())
+            .await
+            .expect("diagnostics in time")
+            .unwrap();
         if d.component == "listener" && d.get("decode_errors/chatter") == 3 {
             break;
         }

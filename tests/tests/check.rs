@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used)]
 //! `robocog check` names the file and line of every broken-manifest kind.
 
 use robocog_tests::*;
@@ -7,7 +8,11 @@ fn check(text: &str) -> (i32, String, String) {
     let ns = unique_namespace("check");
     let dir = scratch(&ns);
     let m = write_manifest(&dir, "graph.toml", text);
-    let out = run(&bin("robocog"), &["check".into(), m.display().to_string()], Duration::from_secs(30));
+    let out = run(
+        &bin("robocog"),
+        &["check".into(), m.display().to_string()],
+        Duration::from_secs(30),
+    );
     (
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stderr).into_owned(),
@@ -195,12 +200,29 @@ args = ["--role", "${role}"]
     // With the default variable, the binary cannot describe itself: a warning, not an error.
     let plain = run(&robocog, &["check".into(), m.clone()], t);
     assert!(String::from_utf8_lossy(&plain.stderr).contains("cannot describe"));
-    let profiled = run(&robocog, &["check".into(), m.clone(), "--profile".into(), "good".into()], t);
+    let profiled = run(
+        &robocog,
+        &["check".into(), m.clone(), "--profile".into(), "good".into()],
+        t,
+    );
     assert!(profiled.status.success());
     assert!(!String::from_utf8_lossy(&profiled.stderr).contains("cannot describe"));
-    let set = run(&robocog, &["check".into(), m.clone(), "--set".into(), "role=talker".into()], t);
+    let set = run(
+        &robocog,
+        &[
+            "check".into(),
+            m.clone(),
+            "--set".into(),
+            "role=talker".into(),
+        ],
+        t,
+    );
     assert!(set.status.success());
-    let bad = run(&robocog, &["check".into(), m, "--profile".into(), "nope".into()], t);
+    let bad = run(
+        &robocog,
+        &["check".into(), m, "--profile".into(), "nope".into()],
+        t,
+    );
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown profile \"nope\""));
 }
@@ -209,9 +231,17 @@ args = ["--role", "${role}"]
 fn errors_in_an_included_file_name_that_file() {
     let ns = unique_namespace("include");
     let dir = scratch(&ns);
-    let inc = write_manifest(&dir, "part.toml", "[[component]]\nname = \"x\"\nbinary = \"@FIXTURE@\"\nrestart = \"sometimes\"\n");
+    let inc = write_manifest(
+        &dir,
+        "part.toml",
+        "[[component]]\nname = \"x\"\nbinary = \"@FIXTURE@\"\nrestart = \"sometimes\"\n",
+    );
     let top = write_manifest(&dir, "top.toml", "include = [\"part.toml\"]\n");
-    let out = run(&bin("robocog"), &["check".into(), top.display().to_string()], Duration::from_secs(30));
+    let out = run(
+        &bin("robocog"),
+        &["check".into(), top.display().to_string()],
+        Duration::from_secs(30),
+    );
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1));
     assert!(err.contains(&format!("{}:4: ", inc.display())), "{err}");

@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used)]
 //! `robocog launch`: order, restarts, stopping, and failures, with real processes.
 
 use robocog_tests::*;
@@ -38,40 +39,66 @@ args = ["--role", "idle"]
 "#,
     );
     let mut launch = Launch::start(&m, &ns, &[]);
-    launch.lines.wait_for("front up", Duration::from_secs(30), |l| l.contains("front is up"));
+    launch
+        .lines
+        .wait_for("front up", Duration::from_secs(30), |l| {
+            l.contains("front is up")
+        });
     let lines = launch.lines.all();
     let base_up = index_of(&lines, |l| l.contains("base is up"));
     let middle_started = index_of(&lines, |l| l.contains("started middle"));
     let middle_up = index_of(&lines, |l| l.contains("middle is up"));
     let front_started = index_of(&lines, |l| l.contains("started front"));
-    assert!(base_up < middle_started, "middle started before base was up:\n{}", lines.join("\n"));
-    assert!(middle_up < front_started, "front started before middle was up:\n{}", lines.join("\n"));
+    assert!(
+        base_up < middle_started,
+        "middle started before base was up:\n{}",
+        lines.join("\n")
+    );
+    assert!(
+        middle_up < front_started,
+        "front started before middle was up:\n{}",
+        lines.join("\n")
+    );
 
     let pids: Vec<u32> = ["front", "middle", "base"]
         .iter()
-        .map(|n| eventually(&format!("{n}'s pid"), Duration::from_secs(10), || component_pid(&launch, n)))
+        .map(|n| {
+            eventually(&format!("{n}'s pid"), Duration::from_secs(10), || {
+                component_pid(&launch, n)
+            })
+        })
         .collect();
 
     // SIGKILL the middle one: the launcher restarts it (a new process comes up).
     signal(pids[1], "KILL");
-    launch.lines.wait_for("the restart", Duration::from_secs(15), |l| {
-        l.contains("middle stopped (killed by signal 9") && l.contains("restart 1/")
-    });
+    launch
+        .lines
+        .wait_for("the restart", Duration::from_secs(15), |l| {
+            l.contains("middle stopped (killed by signal 9") && l.contains("restart 1/")
+        });
     let new_pid = eventually("middle's new pid", Duration::from_secs(20), || {
         component_pid(&launch, "middle").filter(|p| *p != pids[1])
     });
     assert!(alive(new_pid));
     let restart_at = launch.lines.all().len();
-    launch.lines.wait_until("messages again after the restart", Duration::from_secs(15), |lines| {
-        lines[restart_at..].iter().any(|l| l.contains("middle |") && l.contains("received: hello"))
-    });
+    launch.lines.wait_until(
+        "messages again after the restart",
+        Duration::from_secs(15),
+        |lines| {
+            lines[restart_at..]
+                .iter()
+                .any(|l| l.contains("middle |") && l.contains("received: hello"))
+        },
+    );
 
     // SIGTERM to the launcher: everything stops, nothing is left.
     launch.sigterm();
     let status = launch.wait_exit(Duration::from_secs(30));
     assert!(status.success(), "launcher exit {status:?}");
     for pid in [pids[0], new_pid, pids[2]] {
-        eventually(&format!("pid {pid} gone"), Duration::from_secs(5), || (!alive(pid)).then_some(()));
+        eventually(&format!("pid {pid} gone"), Duration::from_secs(5), || {
+            (!alive(pid)).then_some(())
+        });
     }
     assert!(launch.lines.count(|l| l.contains("all components stopped")) == 1);
 }
@@ -91,13 +118,24 @@ stop_timeout_s = 1.0
 "#,
     );
     let mut launch = Launch::start(&m, &ns, &[]);
-    launch.lines.wait_for("up", Duration::from_secs(20), |l| l.contains("stubborn is up"));
-    let pid = eventually("pid", Duration::from_secs(10), || component_pid(&launch, "stubborn"));
+    launch.lines.wait_for("up", Duration::from_secs(20), |l| {
+        l.contains("stubborn is up")
+    });
+    let pid = eventually("pid", Duration::from_secs(10), || {
+        component_pid(&launch, "stubborn")
+    });
     launch.sigterm();
     let status = launch.wait_exit(Duration::from_secs(20));
     assert!(status.success());
-    assert!(launch.lines.count(|l| l.contains("stubborn ignored SIGTERM") && l.contains("SIGKILL")) == 1);
-    eventually("stubborn gone", Duration::from_secs(5), || (!alive(pid)).then_some(()));
+    assert!(
+        launch
+            .lines
+            .count(|l| l.contains("stubborn ignored SIGTERM") && l.contains("SIGKILL"))
+            == 1
+    );
+    eventually("stubborn gone", Duration::from_secs(5), || {
+        (!alive(pid)).then_some(())
+    });
 }
 
 #[test]
@@ -124,9 +162,18 @@ args = ["--role", "idle"]
     let status = launch.wait_exit(Duration::from_secs(40));
     assert_eq!(status.code(), Some(1), "{}", launch.lines.all().join("\n"));
     let all = launch.lines.all().join("\n");
-    assert!(all.contains("crasher stopped (exit code 3); restart 1/2"), "{all}");
-    assert!(all.contains("crasher stopped (exit code 3); restart 2/2"), "{all}");
-    assert!(all.contains("crasher failed for good (exit code 3, after 2 restarts)"), "{all}");
+    assert!(
+        all.contains("crasher stopped (exit code 3); restart 1/2"),
+        "{all}"
+    );
+    assert!(
+        all.contains("crasher stopped (exit code 3); restart 2/2"),
+        "{all}"
+    );
+    assert!(
+        all.contains("crasher failed for good (exit code 3, after 2 restarts)"),
+        "{all}"
+    );
 }
 
 #[test]
@@ -146,7 +193,11 @@ ready_timeout_s = 1.5
     let mut launch = Launch::start(&m, &ns, &[]);
     let status = launch.wait_exit(Duration::from_secs(30));
     assert_eq!(status.code(), Some(1));
-    assert!(launch.lines.count(|l| l.contains("mute never came up")) == 1, "{}", launch.lines.all().join("\n"));
+    assert!(
+        launch.lines.count(|l| l.contains("mute never came up")) == 1,
+        "{}",
+        launch.lines.all().join("\n")
+    );
 }
 
 #[test]

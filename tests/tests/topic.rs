@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used)]
 //! `robocog topic` and `robocog component` against a running graph, with no opt-in.
 
 use robocog_tests::*;
@@ -22,25 +23,68 @@ args = ["--role", "listener"]
 "#,
     );
     let launch = Launch::start(&m, &ns, &[]);
-    launch.lines.wait_for("talker up", Duration::from_secs(20), |l| l.contains("talker is up"));
-    launch.lines.wait_for("listener up", Duration::from_secs(20), |l| l.contains("listener is up"));
+    launch
+        .lines
+        .wait_for("talker up", Duration::from_secs(20), |l| {
+            l.contains("talker is up")
+        });
+    launch
+        .lines
+        .wait_for("listener up", Duration::from_secs(20), |l| {
+            l.contains("listener is up")
+        });
     let t = Duration::from_secs(30);
 
     // echo decodes the payload and prints JSON.
-    let out = launch.robocog(&["topic", "echo", "chatter", "--count", "2", "--timeout", "10"], t);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = launch.robocog(
+        &[
+            "topic",
+            "echo",
+            "chatter",
+            "--count",
+            "2",
+            "--timeout",
+            "10",
+        ],
+        t,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let first: serde_json::Value = serde_json::from_str(stdout.lines().next().unwrap()).unwrap();
-    assert!(first["text"].as_str().unwrap().starts_with("hello "), "{first}");
+    assert!(
+        first["text"].as_str().unwrap().starts_with("hello "),
+        "{first}"
+    );
     assert!(first["header"]["stamp_ns"].as_i64().unwrap() > 0);
 
     // list shows the topic with its type and both ends.
     let out = launch.robocog(&["topic", "list", "--json"], t);
     let list: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let chatter = list.as_array().unwrap().iter().find(|x| x["topic"] == "chatter").expect("chatter listed");
+    let chatter = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|x| x["topic"] == "chatter")
+        .expect("chatter listed");
     assert_eq!(chatter["types"][0], "robocog.Text");
-    assert!(chatter["publishers"].as_array().unwrap().iter().any(|p| p == "talker"));
-    assert!(chatter["subscribers"].as_array().unwrap().iter().any(|p| p == "listener"));
+    assert!(
+        chatter["publishers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|p| p == "talker")
+    );
+    assert!(
+        chatter["subscribers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|p| p == "listener")
+    );
 
     // hz measures the talker's 20 Hz.
     let out = launch.robocog(&["topic", "hz", "chatter", "--duration", "3", "--json"], t);
@@ -53,14 +97,31 @@ args = ["--role", "listener"]
     // info shows the type and its shape.
     let out = launch.robocog(&["topic", "info", "chatter"], t);
     let info = String::from_utf8_lossy(&out.stdout);
-    assert!(info.contains("robocog.Text") && info.contains("\"text\""), "{info}");
+    assert!(
+        info.contains("robocog.Text") && info.contains("\"text\""),
+        "{info}"
+    );
 
     // pub reaches the listener; a misspelt field is refused.
-    let out = launch.robocog(&["topic", "pub", "chatter", r#"{"text": "from the command line"}"#], t);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    launch.lines.wait_for("the published message", Duration::from_secs(10), |l| {
-        l.contains("received: from the command line")
-    });
+    let out = launch.robocog(
+        &[
+            "topic",
+            "pub",
+            "chatter",
+            r#"{"text": "from the command line"}"#,
+        ],
+        t,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    launch
+        .lines
+        .wait_for("the published message", Duration::from_secs(10), |l| {
+            l.contains("received: from the command line")
+        });
     let out = launch.robocog(&["topic", "pub", "chatter", r#"{"txt": "typo"}"#], t);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no field \"txt\""));
@@ -68,6 +129,14 @@ args = ["--role", "listener"]
     // component list shows both, on this host.
     let out = launch.robocog(&["component", "list", "--json"], t);
     let comps: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let names: Vec<&str> = comps.as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
-    assert!(names.contains(&"talker") && names.contains(&"listener"), "{names:?}");
+    let names: Vec<&str> = comps
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"talker") && names.contains(&"listener"),
+        "{names:?}"
+    );
 }

@@ -53,6 +53,9 @@ impl RgbdFrame {
             return None;
         }
         let i = 2 * (v as usize * self.width as usize + u as usize);
-        Some(u16::from_le_bytes([*self.depth_mm.get(i)?, *self.depth_mm.get(i + 1)?]))
+        Some(u16::from_le_bytes([
+            *self.depth_mm.get(i)?,
+            *self.depth_mm.get(i + 1)?,
+        ]))
     }
 }

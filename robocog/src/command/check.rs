@@ -17,7 +17,10 @@ pub struct Args {
 
 /// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
 pub fn execute(args: Args) -> i32 {
-    let overrides = Overrides { profile: args.profile, set: args.set };
+    let overrides = Overrides {
+        profile: args.profile,
+        set: args.set,
+    };
     let manifest = match Manifest::load(&args.manifest, &overrides) {
         Ok(m) => m,
         Err(problems) => {
@@ -33,7 +36,12 @@ pub fn execute(args: Args) -> i32 {
             let topics: std::collections::BTreeSet<&str> = report
                 .interfaces
                 .values()
-                .flat_map(|i| i.publishes.iter().chain(&i.subscribes).map(|p| p.name.as_str()))
+                .flat_map(|i| {
+                    i.publishes
+                        .iter()
+                        .chain(&i.subscribes)
+                        .map(|p| p.name.as_str())
+                })
                 .collect();
             println!(
                 "{}: graph {:?} is sound: {} components, {} topics",

@@ -1,6 +1,5 @@
 //! `robocog component list`: which components are alive, since when, on which host.
 
-use interfaces::bus::{Bus, BusOptions};
 use interfaces::liveliness::Token;
 use std::time::Duration;
 
@@ -23,15 +22,19 @@ pub enum Verb {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let bus =
-        Bus::open_with(&args.connect, "robocog-cli", BusOptions { announce: false, ..Default::default() }).await?;
+    let bus = super::cli_bus(&args.connect).await?;
     let Verb::List { json } = args.verb;
     let mut rows: Vec<(String, String, u32, i64)> = bus
         .graph(Duration::from_millis(700))
         .await?
         .into_iter()
         .filter_map(|t| match t {
-            Token::Component { name, host, pid, since_ms } => Some((name, host, pid, since_ms)),
+            Token::Component {
+                name,
+                host,
+                pid,
+                since_ms,
+            } => Some((name, host, pid, since_ms)),
             _ => None,
         })
         .collect();
@@ -49,7 +52,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         let w = rows.iter().map(|r| r.0.len()).max().unwrap_or(4).max(9);
         println!("{:w$}  {:20}  {:>8}  UP", "COMPONENT", "HOST", "PID");
         for (n, h, p, s) in &rows {
-            println!("{n:w$}  {h:20}  {p:>8}  {:.1} s", (now_ms - s) as f64 / 1000.0);
+            println!(
+                "{n:w$}  {h:20}  {p:>8}  {:.1} s",
+                (now_ms - s) as f64 / 1000.0
+            );
         }
     }
     Ok(0)

@@ -28,7 +28,10 @@ pub struct Args {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let overrides = Overrides { profile: args.profile, set: args.set };
+    let overrides = Overrides {
+        profile: args.profile,
+        set: args.set,
+    };
     let manifest = match Manifest::load(&args.manifest, &overrides) {
         Ok(m) => m,
         Err(problems) => {
@@ -63,5 +66,13 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         "never" => false,
         _ => std::io::stdout().is_terminal(),
     };
-    launch(manifest, LaunchOptions { namespace, router, color }).await
+    launch(
+        manifest,
+        LaunchOptions {
+            namespace,
+            router,
+            color,
+        },
+    )
+    .await
 }

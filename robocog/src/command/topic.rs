@@ -4,7 +4,6 @@
 //! payload by the type name its sample carries (its encoding's schema), through the registry of
 //! `interfaces`.
 
-use interfaces::bus::{Bus, BusOptions};
 use interfaces::liveliness::{self, Token};
 use interfaces::msg;
 use std::collections::BTreeMap;
@@ -86,8 +85,16 @@ fn topics(tokens: &[Token]) -> BTreeMap<String, TopicInfo> {
     let mut map: BTreeMap<String, TopicInfo> = BTreeMap::new();
     for t in tokens {
         let (topic, component, type_name, is_pub) = match t {
-            Token::Publisher { component, type_name, topic } => (topic, component, type_name, true),
-            Token::Subscriber { component, type_name, topic } => (topic, component, type_name, false),
+            Token::Publisher {
+                component,
+                type_name,
+                topic,
+            } => (topic, component, type_name, true),
+            Token::Subscriber {
+                component,
+                type_name,
+                topic,
+            } => (topic, component, type_name, false),
             _ => continue,
         };
         let e = map.entry(topic.clone()).or_insert(TopicInfo {
@@ -98,16 +105,16 @@ fn topics(tokens: &[Token]) -> BTreeMap<String, TopicInfo> {
         if !e.types.contains(type_name) {
             e.types.push(type_name.clone());
         }
-        let list = if is_pub { &mut e.publishers } else { &mut e.subscribers };
+        let list = if is_pub {
+            &mut e.publishers
+        } else {
+            &mut e.subscribers
+        };
         if !list.contains(component) {
             list.push(component.clone());
         }
     }
     map
-}
-
-async fn open(args: &interfaces::ConnectArgs) -> anyhow::Result<Bus> {
-    Ok(Bus::open_with(args, "robocog-cli", BusOptions { announce: false, ..Default::default() }).await?)
 }
 
 fn check_topic(name: &str) -> anyhow::Result<()> {
@@ -125,7 +132,7 @@ fn sample_type(sample: &zenoh::sample::Sample) -> Option<String> {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let bus = open(&args.connect).await?;
+    let bus = super::cli_bus(&args.connect).await?;
     match args.verb {
         Verb::List { json } => {
             let map = topics(&bus.graph(GRAPH_WAIT).await?);
@@ -141,7 +148,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 println!("no topics in namespace {:?}", bus.namespace());
             } else {
                 let w = map.keys().map(String::len).max().unwrap_or(5).max(5);
-                println!("{:w$}  {:24}  {:>4}  {:>4}", "TOPIC", "TYPE", "PUBS", "SUBS");
+                println!(
+                    "{:w$}  {:24}  {:>4}  {:>4}",
+                    "TOPIC", "TYPE", "PUBS", "SUBS"
+                );
                 for (t, i) in &map {
                     println!(
                         "{t:w$}  {:24}  {:>4}  {:>4}",
@@ -157,7 +167,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             check_topic(&topic)?;
             let map = topics(&bus.graph(GRAPH_WAIT).await?);
             let Some(info) = map.get(&topic) else {
-                eprintln!("no component of namespace {:?} uses topic {topic:?}", bus.namespace());
+                eprintln!(
+                    "no component of namespace {:?} uses topic {topic:?}",
+                    bus.namespace()
+                );
                 return Ok(1);
             };
             println!("topic:       {topic}");
@@ -167,13 +180,21 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             println!("subscribers: {}", info.subscribers.join(", "));
             for t in &info.types {
                 match msg::lookup(t) {
-                    Ok(e) => println!("shape of {t}:\n{}", serde_json::to_string_pretty(&(e.example)())?),
+                    Ok(e) => println!(
+                        "shape of {t}:\n{}",
+                        serde_json::to_string_pretty(&(e.example)())?
+                    ),
                     Err(e) => println!("{e}"),
                 }
             }
             Ok(0)
         }
-        Verb::Echo { topic, count, timeout, pretty } => {
+        Verb::Echo {
+            topic,
+            count,
+            timeout,
+            pretty,
+        } => {
             check_topic(&topic)?;
             let sub = bus
                 .session()
@@ -185,13 +206,17 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             let mut undecodable = 0u64;
             loop {
                 let next = match timeout {
-                    Some(t) => match tokio::time::timeout(Duration::from_secs_f64(t), sub.recv_async()).await {
-                        Ok(r) => r,
-                        Err(_) => {
-                            eprintln!("no message on {topic} for {t} s");
-                            return Ok(1);
+                    Some(t) => {
+                        match tokio::time::timeout(Duration::from_secs_f64(t), sub.recv_async())
+                            .await
+                        {
+                            Ok(r) => r,
+                            Err(_) => {
+                                eprintln!("no message on {topic} for {t} s");
+                                return Ok(1);
+                            }
                         }
-                    },
+                    }
                     None => sub.recv_async().await,
                 };
                 let Ok(sample) = next else { return Ok(1) };
@@ -202,7 +227,11 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                     .and_then(|e| (e.to_json)(&bytes).map_err(|e| e.to_string()));
                 match decoded {
                     Ok(v) => {
-                        let s = if pretty { serde_json::to_string_pretty(&v)? } else { v.to_string() };
+                        let s = if pretty {
+                            serde_json::to_string_pretty(&v)?
+                        } else {
+                            v.to_string()
+                        };
                         println!("{s}");
                         printed += 1;
                         if count.is_some_and(|c| printed >= c) {
@@ -211,12 +240,20 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                     }
                     Err(e) => {
                         undecodable += 1;
-                        eprintln!("undecodable payload #{undecodable} ({} bytes): {e}", bytes.len());
+                        eprintln!(
+                            "undecodable payload #{undecodable} ({} bytes): {e}",
+                            bytes.len()
+                        );
                     }
                 }
             }
         }
-        Verb::Hz { topic, window, duration, json } => {
+        Verb::Hz {
+            topic,
+            window,
+            duration,
+            json,
+        } => {
             check_topic(&topic)?;
             let sub = bus
                 .session()
@@ -253,7 +290,14 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 }
             }
         }
-        Verb::Pub { topic, json, type_name, count, rate, wait } => {
+        Verb::Pub {
+            topic,
+            json,
+            type_name,
+            count,
+            rate,
+            wait,
+        } => {
             check_topic(&topic)?;
             let type_name = match type_name {
                 Some(t) => t,
@@ -262,7 +306,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                     match map.get(&topic).map(|i| i.types.as_slice()) {
                         Some([t]) => t.clone(),
                         Some(many) if !many.is_empty() => {
-                            anyhow::bail!("topic {topic} carries several types ({}); pass --type", many.join(", "))
+                            anyhow::bail!(
+                                "topic {topic} carries several types ({}); pass --type",
+                                many.join(", ")
+                            )
                         }
                         _ => anyhow::bail!(
                             "no component of namespace {:?} uses topic {topic:?}; pass --type to publish anyway",
@@ -272,8 +319,8 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 }
             };
             let entry = msg::lookup(&type_name)?;
-            let given: serde_json::Value =
-                serde_json::from_str(&json).map_err(|e| anyhow::anyhow!("the message is not JSON: {e}"))?;
+            let given: serde_json::Value = serde_json::from_str(&json)
+                .map_err(|e| anyhow::anyhow!("the message is not JSON: {e}"))?;
             let mut value = (entry.example)();
             merge(&mut value, &given, &type_name, "")?;
             let payload = (entry.from_json)(value)?;
@@ -287,25 +334,39 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             let _token = bus
                 .session()
                 .liveliness()
-                .declare_token(liveliness::publisher_key(bus.namespace(), "robocog-cli", &type_name, &topic))
+                .declare_token(liveliness::publisher_key(
+                    bus.namespace(),
+                    "robocog-cli",
+                    &type_name,
+                    &topic,
+                ))
                 .await
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             // A one-shot publication is lost if nobody listens yet: wait for a subscriber.
             let until = Instant::now() + Duration::from_secs_f64(wait.max(0.0));
             loop {
-                let matching = publisher.matching_status().await.map(|m| m.matching()).unwrap_or(false);
+                let matching = publisher
+                    .matching_status()
+                    .await
+                    .map(|m| m.matching())
+                    .unwrap_or(false);
                 if matching {
                     break;
                 }
                 if Instant::now() >= until {
-                    eprintln!("warning: no subscriber on {topic} after {wait} s; publishing anyway");
+                    eprintln!(
+                        "warning: no subscriber on {topic} after {wait} s; publishing anyway"
+                    );
                     break;
                 }
                 tokio::time::sleep(Duration::from_millis(20)).await;
             }
             let period = Duration::from_secs_f64(1.0 / rate.max(1e-3));
             for i in 0..count {
-                publisher.put(payload.clone()).await.map_err(|e| anyhow::anyhow!("{e}"))?;
+                publisher
+                    .put(payload.clone())
+                    .await
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
                 if i + 1 < count {
                     tokio::time::sleep(period).await;
                 }
@@ -319,17 +380,29 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
 }
 
 /// Lay `given` over the default value `base`, refusing fields the type does not have.
-fn merge(base: &mut serde_json::Value, given: &serde_json::Value, type_name: &str, path: &str) -> anyhow::Result<()> {
+fn merge(
+    base: &mut serde_json::Value,
+    given: &serde_json::Value,
+    type_name: &str,
+    path: &str,
+) -> anyhow::Result<()> {
     use serde_json::Value;
     match (base, given) {
         (Value::Object(b), Value::Object(g)) => {
             for (k, v) in g {
-                let here = if path.is_empty() { k.clone() } else { format!("{path}.{k}") };
+                let here = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
                 match b.get_mut(k) {
                     Some(slot) => merge(slot, v, type_name, &here)?,
                     None => {
                         let known: Vec<&str> = b.keys().map(String::as_str).collect();
-                        anyhow::bail!("{type_name} has no field {here:?} (fields here: {})", known.join(", "))
+                        anyhow::bail!(
+                            "{type_name} has no field {here:?} (fields here: {})",
+                            known.join(", ")
+                        )
                     }
                 }
             }
@@ -345,14 +418,20 @@ fn merge(base: &mut serde_json::Value, given: &serde_json::Value, type_name: &st
 fn print_rate(topic: &str, stamps: &std::collections::VecDeque<Instant>, total: u64, json: bool) {
     if stamps.len() < 2 {
         if json {
-            println!("{}", serde_json::json!({"topic": topic, "messages": total, "rate_hz": 0.0}));
+            println!(
+                "{}",
+                serde_json::json!({"topic": topic, "messages": total, "rate_hz": 0.0})
+            );
         } else {
             println!("{topic}: {total} messages, not enough for a rate");
         }
         return;
     }
-    let intervals: Vec<f64> =
-        stamps.iter().zip(stamps.iter().skip(1)).map(|(a, b)| b.duration_since(*a).as_secs_f64()).collect();
+    let intervals: Vec<f64> = stamps
+        .iter()
+        .zip(stamps.iter().skip(1))
+        .map(|(a, b)| b.duration_since(*a).as_secs_f64())
+        .collect();
     let n = intervals.len() as f64;
     let mean = intervals.iter().sum::<f64>() / n;
     let var = intervals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;

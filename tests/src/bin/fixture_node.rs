@@ -56,8 +56,14 @@ fn main() -> ExitCode {
         std::thread::sleep(Duration::from_secs(3600));
         return ExitCode::SUCCESS;
     }
-    let (role, rate, delay, exit_after, exit_code, ignore) =
-        (args.role, args.rate, args.delay_ms, args.exit_after, args.exit_code, args.ignore_sigterm);
+    let (role, rate, delay, exit_after, exit_code, ignore) = (
+        args.role,
+        args.rate,
+        args.delay_ms,
+        args.exit_after,
+        args.exit_code,
+        args.ignore_sigterm,
+    );
     node::run(args.node, interface, move |bus, mut shutdown| async move {
         if let Some(s) = exit_after {
             tokio::spawn(async move {
@@ -73,7 +79,10 @@ fn main() -> ExitCode {
                     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
                     for n in 0u64.. {
                         tick.tick().await;
-                        let mut msg = Text { text: format!("hello {n}"), ..Default::default() };
+                        let mut msg = Text {
+                            text: format!("hello {n}"),
+                            ..Default::default()
+                        };
                         publisher.publish(&mut msg).await?;
                     }
                 }
@@ -91,7 +100,10 @@ fn main() -> ExitCode {
                             if req.text.is_empty() {
                                 return Err(ServiceError::bad_request("nothing to echo"));
                             }
-                            Ok(Text { text: req.text.to_uppercase(), ..Default::default() })
+                            Ok(Text {
+                                text: req.text.to_uppercase(),
+                                ..Default::default()
+                            })
                         })
                         .await?;
                     std::future::pending::<()>().await;
