@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicI64, Ordering};
 
 /// Every message starts with this: when it was stamped, its sequence number on its publisher, and
 /// the coordinate frame its geometry is expressed in (empty when it has none).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Header {
     /// Nanoseconds since the Unix epoch on the publishing component's [`Clock`] (system or virtual).
     pub stamp_ns: i64,

@@ -48,3 +48,48 @@ pub const DR_SNAPSHOT: Service<crate::msg::dr::SnapshotRequest, crate::msg::dr::
 /// Replace the state with a snapshot (replies with the new state's snapshot).
 pub const DR_RESTORE: Service<crate::msg::dr::SnapshotData, crate::msg::dr::SnapshotData> =
     Service::new("dr/restore");
+
+// nao (the coach game's link to the robot)
+/// Operator commands for the controlled robot (panel, voice, executive).
+pub const NAO_COMMAND: Topic<crate::msg::nao::NaoCommand> = Topic::new("nao/command");
+/// Each robot's local world model, as its debug packets arrive (10 Hz per robot).
+pub const NAO_LOCAL_MODEL: Topic<crate::msg::nao::NaoLocalModel> = Topic::new("nao/local_model");
+/// The fused team world model.
+pub const NAO_WORLD_MODEL: Topic<crate::msg::nao::NaoWorldModel> = Topic::new("nao/world_model");
+/// The GameController's state, our team first.
+pub const NAO_GAME_STATE: Topic<crate::msg::nao::GameState> = Topic::new("nao/game_state");
+/// Link established / robot not responding / restored.
+pub const NAO_LINK: Topic<crate::msg::nao::NaoLinkEvent> = Topic::new("nao/link");
+/// Ground truth of the simulated SPL field.
+pub const SIM_FIELD_TRUTH: Topic<crate::msg::nao::FieldTruth> = Topic::new("sim/field_truth");
+
+// voice
+/// Microphone audio in (16 kHz mono s16le for the recognizer; other formats are dropped, counted).
+pub const AUDIO_IN: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/in");
+/// Synthesized speech out, as the speech generator plays it.
+pub const AUDIO_OUT: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/out");
+/// Every utterance the recognizer decoded, with its confidence and command.
+pub const SPEECH_UTTERANCE: Topic<crate::msg::speech::Utterance> = Topic::new("speech/utterance");
+/// Requests to say something, with a priority (urgent interrupts).
+pub const SPEECH_SAY: Topic<crate::msg::speech::SayRequest> = Topic::new("speech/say");
+/// The speech generator's progress: queued, started, finished, interrupted.
+pub const SPEECH_SPEAKING: Topic<crate::msg::speech::SpeakingEvent> = Topic::new("speech/speaking");
+/// Validated game commands (voice after the dialog, or the command panel).
+pub const GAME_COMMAND: Topic<crate::msg::command::GameCommand> = Topic::new("game/command");
+/// Yes/no answers to the dialog's "Did you say ...?" from the command panel.
+pub const GAME_ANSWER: Topic<crate::msg::command::Answer> = Topic::new("game/answer");
+
+// vision
+/// Registered RGB-D frames of the head camera (the `rgbd` component), about 1.5 MB each at
+/// 640x480: shared memory on one host.
+pub const VISION_RGBD: Topic<crate::msg::vision::RgbdFrame> = Topic::new("vision/rgbd");
+/// What the ball tracker looks for (colour, size); `active = false` clears it.
+pub const VISION_BALL_TARGET: Topic<crate::msg::tracking::BallTarget> =
+    Topic::new("vision/ball_target");
+/// The ball tracker's result, one per processed frame (camera optical frame).
+pub const VISION_BALL: Topic<crate::msg::tracking::BallTrack> = Topic::new("vision/ball");
+/// Ball detected / out of view / lost / detection timed out.
+pub const VISION_BALL_EVENTS: Topic<crate::msg::tracking::BallEvent> =
+    Topic::new("vision/ball_events");
+/// Ground truth of the simulated ball (the `rgbd` sim driver), one per simulated frame.
+pub const SIM_BALL_TRUTH: Topic<crate::msg::tracking::BallTruth> = Topic::new("sim/ball_truth");

@@ -51,7 +51,9 @@
 //!
 //! Bus-facing data types are in [`types`], ready to move to `interfaces`.
 
+pub mod bus;
 pub mod command;
+pub mod component;
 pub mod debug;
 pub mod gamecontroller;
 pub mod inbound;

@@ -10,9 +10,13 @@
 //! Every type is listed once in the `messages!` invocation below, which gives it its type name and
 //! puts it in [`REGISTRY`].
 
+pub mod command;
 pub mod diag;
 pub mod dr;
+pub mod nao;
+pub mod speech;
 pub mod std_msgs;
+pub mod tracking;
 pub mod vision;
 
 use crate::codec::{self, CodecError};
@@ -109,6 +113,16 @@ messages! {
     std_msgs::Counter64 => "robocog.Counter64",
     diag::Diagnostics => "robocog.Diagnostics",
     vision::RgbdFrame => "robocog.RgbdFrame",
+    tracking::BallTarget => "robocog.BallTarget",
+    tracking::BallTrack => "robocog.BallTrack",
+    tracking::BallEvent => "robocog.BallEvent",
+    tracking::BallTruth => "robocog.sim.BallTruth",
+    nao::NaoCommand => "robocog.nao.Command",
+    nao::NaoLocalModel => "robocog.nao.LocalModel",
+    nao::NaoWorldModel => "robocog.nao.WorldModel",
+    nao::GameState => "robocog.nao.GameState",
+    nao::NaoLinkEvent => "robocog.nao.LinkEvent",
+    nao::FieldTruth => "robocog.sim.FieldTruth",
     dr::GetNodeRequest => "robocog.dr.GetNodeRequest",
     dr::NodeInfo => "robocog.dr.NodeInfo",
     dr::TransformRequest => "robocog.dr.TransformRequest",
@@ -126,6 +140,12 @@ messages! {
     dr::SnapshotRequest => "robocog.dr.SnapshotRequest",
     dr::SnapshotData => "robocog.dr.SnapshotData",
     dr::DrChange => "robocog.dr.DrChange",
+    command::GameCommand => "robocog.GameCommand",
+    command::Answer => "robocog.Answer",
+    speech::AudioChunk => "robocog.AudioChunk",
+    speech::Utterance => "robocog.speech.Utterance",
+    speech::SayRequest => "robocog.speech.SayRequest",
+    speech::SpeakingEvent => "robocog.speech.SpeakingEvent",
 }
 
 #[cfg(test)]

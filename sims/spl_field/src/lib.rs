@@ -57,3 +57,5 @@ pub use types::{Datagram, RobotId, Side, SimConfig, SimEvent};
 
 #[cfg(test)]
 mod tests;
+
+pub mod process;

@@ -1,0 +1,181 @@
+//! The `nao_bridge` process: UDP on one side, the bus on the other.
+//!
+//! - `nao/command` messages are encoded to the 11-byte packet and sent to the controlled robot's
+//!   command port; a command that cannot be encoded (no body and no head, no target for
+//!   GoToPosition) is refused, counted (`refused_commands`) and logged.
+//! - Debug packets from the configured robot addresses are decoded and published on
+//!   `nao/local_model`, fused into `nao/world_model`; GameController packets become
+//!   `nao/game_state`; link changes ("robot not responding") go on `nao/link`.
+//! - Every dropped datagram is counted per kind and reason (`drop/<kind>/<reason>` on the
+//!   component's `diagnostics`) and logged at most once a second per reason.
+
+use crate::bus as convert;
+use crate::{
+    ExpectedRobot, FusionConfig, Inbound, InboundConfig, PacketKind, WorldModelFusion,
+    encode_command,
+};
+use interfaces::{Bus, Shutdown, topics};
+use std::net::{IpAddr, SocketAddr};
+use std::time::{Duration, Instant};
+use tokio::net::UdpSocket;
+
+/// Where the robots and the GameController are.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The controlled robot (player 2): its address receives the commands.
+    pub controlled: IpAddr,
+    /// The autonomous teammate (player 1), whose debug packets are also accepted, if known.
+    pub teammate: Option<IpAddr>,
+    /// The robot's command port (65306).
+    pub command_port: u16,
+    /// Where this bridge listens for debug packets (65305) and GameController packets (3838).
+    pub listen: IpAddr,
+    pub debug_port: u16,
+    pub gamecontroller_port: u16,
+    pub team_number: u8,
+    pub link_timeout_s: f64,
+}
+
+/// Run the bridge until shutdown.
+pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let debug_sock = UdpSocket::bind(SocketAddr::new(config.listen, config.debug_port))
+        .await
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "cannot listen for debug packets on {}:{}: {e}",
+                config.listen,
+                config.debug_port
+            )
+        })?;
+    let gc_sock = UdpSocket::bind(SocketAddr::new(config.listen, config.gamecontroller_port))
+        .await
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "cannot listen for GameController packets on {}:{}: {e}",
+                config.listen,
+                config.gamecontroller_port
+            )
+        })?;
+    let unspecified: IpAddr = if config.controlled.is_ipv4() {
+        [0, 0, 0, 0].into()
+    } else {
+        [0u16; 8].into()
+    };
+    let cmd_sock = UdpSocket::bind(SocketAddr::new(unspecified, 0)).await?;
+    let robot = SocketAddr::new(config.controlled, config.command_port);
+
+    let started = Instant::now();
+    let now_s = move || started.elapsed().as_secs_f64();
+    let mut robots = vec![ExpectedRobot {
+        address: config.controlled,
+        player_number: 2,
+    }];
+    if let Some(t) = config.teammate {
+        robots.push(ExpectedRobot {
+            address: t,
+            player_number: 1,
+        });
+    }
+    let mut inbound = Inbound::new(
+        InboundConfig {
+            robots,
+            link_timeout_s: config.link_timeout_s,
+            ..Default::default()
+        },
+        now_s(),
+    );
+    let mut fusion = WorldModelFusion::new(FusionConfig {
+        controlled_player: 2,
+        team_number: Some(config.team_number),
+        ..Default::default()
+    });
+
+    let local_pub = bus.publisher(&topics::NAO_LOCAL_MODEL).await?;
+    let world_pub = bus.publisher(&topics::NAO_WORLD_MODEL).await?;
+    let game_pub = bus.publisher(&topics::NAO_GAME_STATE).await?;
+    let link_pub = bus.publisher(&topics::NAO_LINK).await?;
+    let commands = bus.subscriber(&topics::NAO_COMMAND).await?;
+    let counters = bus.counters().clone();
+    tracing::info!(
+        "bridge: commands to {robot}, debug packets on {}:{}, GameController on {}:{}",
+        config.listen,
+        config.debug_port,
+        config.listen,
+        config.gamecontroller_port
+    );
+
+    let mut debug_buf = vec![0u8; 2048];
+    let mut gc_buf = vec![0u8; 2048];
+    let mut tick = tokio::time::interval(Duration::from_millis(100));
+    let mut last_counts = Vec::new();
+    loop {
+        tokio::select! {
+            _ = shutdown.wait() => return Ok(()),
+            cmd = commands.recv() => {
+                let cmd = cmd?;
+                let typed = convert::command_from_bus(&cmd);
+                match encode_command(&typed) {
+                    Ok(packet) => {
+                        if let Err(e) = cmd_sock.send_to(&packet, robot).await {
+                            counters.incr("send_errors");
+                            tracing::warn!("cannot send a command to {robot}: {e}");
+                        } else {
+                            counters.incr("commands_sent");
+                        }
+                    }
+                    Err(e) => {
+                        counters.incr("refused_commands");
+                        tracing::warn!("refused a command from {:?}: {e}", cmd.source);
+                    }
+                }
+            }
+            r = debug_sock.recv_from(&mut debug_buf) => {
+                let (n, from) = r?;
+                let t = now_s();
+                if let Some((model, event)) = inbound.on_debug(&debug_buf[..n], from, t) {
+                    let mut m = convert::local_model_to_bus(&model);
+                    local_pub.publish(&mut m).await?;
+                    fusion.ingest(&model, t);
+                    let mut w = convert::world_model_to_bus(&fusion.snapshot(t));
+                    world_pub.publish(&mut w).await?;
+                    if let Some((player, e)) = event {
+                        let mut l = convert::link_event_to_bus(player, &e, t);
+                        link_pub.publish(&mut l).await?;
+                    }
+                }
+            }
+            r = gc_sock.recv_from(&mut gc_buf) => {
+                let (n, from) = r?;
+                if let Some(state) = inbound.on_gamecontroller(&gc_buf[..n], from, now_s()) {
+                    let mut g = convert::game_state_to_bus(&state, config.team_number);
+                    game_pub.publish(&mut g).await?;
+                }
+            }
+            _ = tick.tick() => {
+                let t = now_s();
+                for (player, e) in inbound.poll(t) {
+                    tracing::warn!("robot {player} not responding");
+                    let mut l = convert::link_event_to_bus(player, &e, t);
+                    link_pub.publish(&mut l).await?;
+                }
+                // Mirror the per-reason drop counters into the bus counters (diagnostics).
+                let drops = inbound.drops().counters();
+                let mut counts = Vec::new();
+                for kind in [PacketKind::Debug, PacketKind::GameController] {
+                    for reason in crate::DropReason::ALL {
+                        let n = drops.get(kind, reason);
+                        if n > 0 {
+                            counts.push((format!("drop/{kind}/{}", reason.name()), n));
+                        }
+                    }
+                }
+                if counts != last_counts {
+                    for (name, n) in &counts {
+                        counters.counter(name).store(*n, std::sync::atomic::Ordering::Relaxed);
+                    }
+                    last_counts = counts;
+                }
+            }
+        }
+    }
+}

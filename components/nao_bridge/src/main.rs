@@ -1,0 +1,68 @@
+use clap::Parser;
+use interfaces::node::{self, Interface, NodeArgs};
+use interfaces::topics;
+use nao_bridge::component::{Config, run};
+use std::net::IpAddr;
+use std::process::ExitCode;
+
+/// The operator-side end of the Nao coach link: commands out on UDP, the robots' world models
+/// and the GameController's state in, all on the bus.
+#[derive(Debug, Parser)]
+#[command(version)]
+struct Args {
+    #[command(flatten)]
+    node: NodeArgs,
+    /// Address of the controlled robot (player 2), which receives the commands.
+    #[arg(long, default_value = "127.0.0.2")]
+    robot: IpAddr,
+    /// Address of the autonomous teammate (player 1), whose debug packets are also accepted.
+    #[arg(long)]
+    teammate: Option<IpAddr>,
+    /// The robot's command port.
+    #[arg(long, default_value_t = nao_bridge::COMMAND_PORT)]
+    command_port: u16,
+    /// Address to listen on for debug and GameController packets (UDP).
+    #[arg(long, default_value = "127.0.0.1")]
+    udp_listen: IpAddr,
+    /// Port of the robots' debug packets.
+    #[arg(long, default_value_t = nao_bridge::DEBUG_PORT)]
+    debug_port: u16,
+    /// Port of the GameController's packets.
+    #[arg(long, default_value_t = nao_bridge::GAMECONTROLLER_PORT)]
+    gamecontroller_port: u16,
+    /// Our team number (finds our block in the GameController packet).
+    #[arg(long, default_value_t = 19)]
+    team_number: u8,
+    /// No packet from a robot for this long: "robot not responding" (s).
+    #[arg(long, default_value_t = 1.0)]
+    link_timeout_s: f64,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let interface = Interface {
+        hardware: vec![
+            format!("udp:{}", args.debug_port),
+            format!("udp:{}", args.gamecontroller_port),
+        ],
+        ..Interface::new("nao_bridge")
+            .subscribes(&topics::NAO_COMMAND)
+            .publishes(&topics::NAO_LOCAL_MODEL)
+            .publishes(&topics::NAO_WORLD_MODEL)
+            .publishes(&topics::NAO_GAME_STATE)
+            .publishes(&topics::NAO_LINK)
+    };
+    let config = Config {
+        controlled: args.robot,
+        teammate: args.teammate,
+        command_port: args.command_port,
+        listen: args.udp_listen,
+        debug_port: args.debug_port,
+        gamecontroller_port: args.gamecontroller_port,
+        team_number: args.team_number,
+        link_timeout_s: args.link_timeout_s,
+    };
+    node::run(args.node, interface, |bus, shutdown| {
+        run(bus, config, shutdown)
+    })
+}

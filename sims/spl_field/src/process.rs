@@ -1,0 +1,138 @@
+//! The simulated field as a process: it plays the robots and the GameController on UDP exactly
+//! where real ones would be, so the bridge cannot tell it from a real field.
+//!
+//! - The controlled robot (player 2) listens for command packets on `controlled:command_port`
+//!   and sends its debug packets from that address; the teammate (player 1) sends from its own
+//!   address (robots are told apart by address, as on a real network: on one host, use two
+//!   loopback addresses such as 127.0.0.2 and 127.0.0.3).
+//! - Debug packets go every 100 ms per robot to `operator:debug_port`, GameController packets
+//!   at 2 Hz to `operator:gamecontroller_port`.
+//! - Ground truth is published on `sim/field_truth` at 10 Hz, for tests and viewers only.
+
+use crate::sim::SplField;
+use crate::types::{Datagram, RobotId, SimConfig, SimEvent};
+use interfaces::msg::nao::{FieldPoint, FieldPose, FieldTruth};
+use interfaces::{Bus, Shutdown, topics};
+use std::net::{IpAddr, SocketAddr};
+use std::time::Duration;
+use tokio::net::UdpSocket;
+
+/// Where the simulated robots sit on the network.
+#[derive(Debug, Clone)]
+pub struct NetConfig {
+    pub operator: IpAddr,
+    pub debug_port: u16,
+    pub gamecontroller_port: u16,
+    pub controlled: IpAddr,
+    pub teammate: IpAddr,
+    pub command_port: u16,
+    /// Simulated seconds per real second.
+    pub time_scale: f64,
+}
+
+fn pose_of(field: &SplField, id: RobotId) -> FieldPose {
+    field
+        .robot(id)
+        .map(|r| FieldPose {
+            x_mm: r.pos.x as f32,
+            y_mm: r.pos.y as f32,
+            theta_rad: r.theta as f32,
+        })
+        .unwrap_or_default()
+}
+
+/// Run the field until shutdown.
+pub async fn run(
+    bus: Bus,
+    net: NetConfig,
+    sim: SimConfig,
+    mut shutdown: Shutdown,
+) -> anyhow::Result<()> {
+    let bind = |addr: IpAddr, port: u16| async move {
+        UdpSocket::bind(SocketAddr::new(addr, port))
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot bind {addr}:{port}: {e}"))
+    };
+    let controlled = bind(net.controlled, net.command_port).await?;
+    let teammate = bind(net.teammate, 0).await?;
+    let gc = bind(net.operator, 0).await?;
+    let debug_to = SocketAddr::new(net.operator, net.debug_port);
+    let gc_to = SocketAddr::new(net.operator, net.gamecontroller_port);
+    let truth = bus.publisher(&topics::SIM_FIELD_TRUTH).await?;
+    let counters = bus.counters().clone();
+    let mut field = SplField::new(sim);
+    tracing::info!(
+        "field: controlled robot on {}:{}, teammate on {}, sending to {debug_to} and {gc_to}",
+        net.controlled,
+        net.command_port,
+        net.teammate
+    );
+
+    let step = Duration::from_millis(10);
+    let mut tick = tokio::time::interval(step);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut buf = vec![0u8; 1024];
+    let (mut last_cmd, mut commands, mut passes) = (Vec::new(), 0u64, 0u32);
+    let mut events_seen = 0usize;
+    let mut since_truth = Duration::ZERO;
+    loop {
+        tokio::select! {
+            _ = shutdown.wait() => return Ok(()),
+            r = controlled.recv_from(&mut buf) => {
+                let (n, from) = r?;
+                match field.receive_command(&buf[..n]) {
+                    Ok(_) => {
+                        commands += 1;
+                        let b = &buf[..n];
+                        let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+                        last_cmd = vec![b[0] as f32, b[1] as f32, b[2] as f32, f(3), f(7)];
+                        tracing::info!("robot 2 obeys {:?} from {from}", field.controlled().body);
+                    }
+                    Err(e) => {
+                        counters.incr("refused_packets");
+                        tracing::warn!("robot 2 refused a packet from {from}: {e}");
+                    }
+                }
+            }
+            _ = tick.tick() => {
+                for d in field.step(step.as_secs_f64() * net.time_scale) {
+                    let sent = match d {
+                        Datagram::Debug { player: 2, bytes } => controlled.send_to(&bytes, debug_to).await,
+                        Datagram::Debug { bytes, .. } => teammate.send_to(&bytes, debug_to).await,
+                        Datagram::GameController { bytes } => gc.send_to(&bytes, gc_to).await,
+                    };
+                    if let Err(e) = sent {
+                        counters.incr("send_errors");
+                        tracing::debug!("send failed: {e}");
+                    }
+                }
+                for (t, e) in &field.events()[events_seen..] {
+                    if matches!(e, SimEvent::PassCompleted { .. }) {
+                        passes += 1;
+                    }
+                    tracing::info!("t={t:.1}s {e:?}");
+                }
+                events_seen = field.events().len();
+                since_truth += step;
+                if since_truth >= Duration::from_millis(100) {
+                    since_truth = Duration::ZERO;
+                    let ball = field.ball;
+                    let mut msg = FieldTruth {
+                        time_s: field.time_s(),
+                        ball: FieldPoint { x_mm: ball.x as f32, y_mm: ball.y as f32 },
+                        controlled: pose_of(&field, RobotId::CONTROLLED),
+                        teammate: pose_of(&field, RobotId::AUTONOMOUS),
+                        controlled_body: field.controlled().body.map_or("None".into(), |b| format!("{b:?}")),
+                        last_command: last_cmd.clone(),
+                        commands_received: commands,
+                        score: field.score(),
+                        passes,
+                        game_state: field.game_state().wire_value(),
+                        ..Default::default()
+                    };
+                    truth.publish(&mut msg).await?;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,164 @@
+#![allow(clippy::unwrap_used)]
+//! The Nao link end to end: the bridge and the simulated field as separate processes on real
+//! UDP (loopback), commands from the bus reaching the simulated robot, world models and the
+//! game state coming back, bad datagrams counted, link loss reported.
+
+use interfaces::msg::nao::{FieldPoint, LinkChange, NaoBody, NaoCommand};
+use interfaces::{Bus, topics};
+use robocog_tests::*;
+use std::time::Duration;
+
+fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn commands_reach_the_simulated_robot_and_its_world_comes_back() {
+    let ns = unique_namespace("nao");
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/nao_field.toml");
+    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let sets = [
+        format!("debug_port={debug}"),
+        format!("gc_port={gc}"),
+        format!("command_port={cmd}"),
+    ];
+    let mut extra = Vec::new();
+    for s in &sets {
+        extra.push("--set");
+        extra.push(s.as_str());
+    }
+    let launch = Launch::start(&manifest, &ns, &extra);
+    launch
+        .lines
+        .wait_for("bridge up", Duration::from_secs(30), |l| {
+            l.contains("nao_bridge is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-coach")
+        .await
+        .unwrap();
+    let world = bus.subscriber(&topics::NAO_WORLD_MODEL).await.unwrap();
+    let game = bus.subscriber(&topics::NAO_GAME_STATE).await.unwrap();
+    let truth = bus.subscriber(&topics::SIM_FIELD_TRUTH).await.unwrap();
+    let links = bus.subscriber(&topics::NAO_LINK).await.unwrap();
+    let diag = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+    let t = Duration::from_secs(10);
+
+    // Both robots' debug packets are fused into the team model.
+    let deadline = tokio::time::Instant::now() + t;
+    loop {
+        let w = tokio::time::timeout_at(deadline, world.recv())
+            .await
+            .expect("world model")
+            .unwrap();
+        let numbers: Vec<u8> = w.robots.iter().map(|r| r.player_number).collect();
+        if numbers.contains(&1) && numbers.contains(&2) {
+            break;
+        }
+    }
+    // The GameController's state, with our team found by number.
+    let g = tokio::time::timeout(t, game.recv())
+        .await
+        .expect("game state")
+        .unwrap();
+    assert!(g.our_team_found);
+    assert_eq!(g.our_team.team_number, 19);
+
+    // Wait for PLAYING (the robot obeys only then), then send GoToPosition over the bus.
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        let f = tokio::time::timeout_at(deadline, truth.recv())
+            .await
+            .expect("PLAYING")
+            .unwrap();
+        if f.game_state == 3 {
+            break;
+        }
+    }
+    let commands = bus.publisher(&topics::NAO_COMMAND).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let mut go = NaoCommand {
+        body: NaoBody::GoToPosition,
+        target: FieldPoint {
+            x_mm: -1500.0,
+            y_mm: 1000.0,
+        },
+        source: "test".into(),
+        ..Default::default()
+    };
+    commands.publish(&mut go).await.unwrap();
+    // The exact packet arrived at the robot, and the robot walks there.
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    let mut got_packet = false;
+    loop {
+        let f = tokio::time::timeout_at(deadline, truth.recv())
+            .await
+            .expect("the robot to arrive")
+            .unwrap();
+        if f.commands_received > 0 {
+            assert_eq!(f.last_command, vec![1.0, 0.0, 0.0, -1500.0, 1000.0]);
+            got_packet = true;
+        }
+        let d =
+            ((f.controlled.x_mm + 1500.0).powi(2) + (f.controlled.y_mm - 1000.0).powi(2)).sqrt();
+        if got_packet && d < 200.0 {
+            break;
+        }
+    }
+
+    // Garbage on the debug port: a wrong-size packet from the robot's address, and a packet
+    // from an unknown address; both counted by reason, and the bridge carries on.
+    let from_robot = std::net::UdpSocket::bind("127.0.0.2:0").unwrap();
+    from_robot
+        .send_to(&[1, 2, 3], ("127.0.0.1", debug))
+        .unwrap();
+    let stranger = std::net::UdpSocket::bind("127.0.0.9:0").unwrap();
+    stranger.send_to(&[0u8; 356], ("127.0.0.1", debug)).unwrap();
+    let deadline = tokio::time::Instant::now() + t;
+    loop {
+        let d = tokio::time::timeout_at(deadline, diag.recv())
+            .await
+            .expect("drop counters")
+            .unwrap();
+        if d.component == "nao_bridge"
+            && d.get("drop/debug/wrong_size") >= 1
+            && d.get("drop/debug/unknown_source") >= 1
+        {
+            break;
+        }
+    }
+    tokio::time::timeout(t, world.recv())
+        .await
+        .expect("still publishing")
+        .unwrap();
+
+    // The field goes away: the bridge says the robot is not responding.
+    let field = eventually("field pid", t, || component_pid(&launch, "spl_field"));
+    signal(field, "STOP");
+    let deadline = tokio::time::Instant::now() + t;
+    loop {
+        let e = tokio::time::timeout_at(deadline, links.recv())
+            .await
+            .expect("link loss")
+            .unwrap();
+        if e.change == LinkChange::RobotNotResponding && e.player_number == 2 {
+            break;
+        }
+    }
+    signal(field, "CONT");
+    let deadline = tokio::time::Instant::now() + t;
+    loop {
+        let e = tokio::time::timeout_at(deadline, links.recv())
+            .await
+            .expect("link restored")
+            .unwrap();
+        if e.change == LinkChange::Restored && e.player_number == 2 {
+            assert!(e.silent_for_s >= 1.0);
+            break;
+        }
+    }
+}
