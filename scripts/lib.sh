@@ -27,6 +27,12 @@ need_debs() {
   fi
 }
 
+# The voice components' system packages: PocketSphinx (library, headers, US English model, CLI
+# for the benchmark's comparison), espeak-ng (the speech generator and the test voices), sox.
+need_voice_debs() {
+  need_debs libpocketsphinx-dev pocketsphinx-en-us pocketsphinx espeak-ng libespeak-ng-dev sox
+}
+
 # Make sure cargo-nextest is there (the machine image ships it; install it otherwise).
 need_nextest() {
   if ! cargo nextest --version >/dev/null 2>&1; then
