@@ -117,15 +117,23 @@ impl Shutdown {
     }
 }
 
-/// Set up `tracing` from `RUST_LOG` (default `info`), writing to stderr.
-pub fn init_logging() {
+/// Set up `tracing` from `RUST_LOG` (else `default_filter`), writing to stderr, coloured only
+/// on a terminal (under the launcher, stderr is a pipe and the launcher colours the prefix).
+pub fn init_logging_with(default_filter: &str) {
+    use std::io::IsTerminal;
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn"));
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default_filter));
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_target(false)
         .try_init();
+}
+
+/// Logging for components: `info`, zenoh's own warnings included.
+pub fn init_logging() {
+    init_logging_with("info,zenoh=warn");
 }
 
 /// Run a component: see the module doc. `body` gets the bus and the shutdown signal and returns

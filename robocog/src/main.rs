@@ -24,7 +24,8 @@ enum Verb {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    interfaces::node::init_logging();
+    // The tools' own errors say what went wrong; zenoh's connection warnings would repeat it.
+    interfaces::node::init_logging_with("info,zenoh=error");
     if let Verb::Check(args) = cli.verb {
         return ExitCode::from(command::check::execute(args) as u8);
     }

@@ -3,6 +3,17 @@
 use interfaces::liveliness::Token;
 use std::time::Duration;
 
+use std::io::Write;
+
+/// Print a line; when stdout is gone (`| head`), stop quietly with success, as Unix tools do.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        if writeln!(std::io::stdout().lock(), $($arg)*).is_err() {
+            return Ok(0);
+        }
+    };
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -45,14 +56,14 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             .iter()
             .map(|(n, h, p, s)| serde_json::json!({"name": n, "host": h, "pid": p, "since_ms": s, "uptime_s": (now_ms - s) as f64 / 1000.0}))
             .collect();
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        out!("{}", serde_json::to_string_pretty(&v)?);
     } else if rows.is_empty() {
-        println!("no components in namespace {:?}", bus.namespace());
+        out!("no components in namespace {:?}", bus.namespace());
     } else {
         let w = rows.iter().map(|r| r.0.len()).max().unwrap_or(4).max(9);
-        println!("{:w$}  {:20}  {:>8}  UP", "COMPONENT", "HOST", "PID");
+        out!("{:w$}  {:20}  {:>8}  UP", "COMPONENT", "HOST", "PID");
         for (n, h, p, s) in &rows {
-            println!(
+            out!(
                 "{n:w$}  {h:20}  {p:>8}  {:.1} s",
                 (now_ms - s) as f64 / 1000.0
             );

@@ -9,6 +9,17 @@ use interfaces::msg;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
+use std::io::Write;
+
+/// Print a line; when stdout is gone (`| head`), stop quietly with success, as Unix tools do.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        if writeln!(std::io::stdout().lock(), $($arg)*).is_err() {
+            return Ok(0);
+        }
+    };
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -143,17 +154,20 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                         serde_json::json!({"topic": t, "types": i.types, "publishers": i.publishers, "subscribers": i.subscribers})
                     })
                     .collect();
-                println!("{}", serde_json::to_string_pretty(&v)?);
+                out!("{}", serde_json::to_string_pretty(&v)?);
             } else if map.is_empty() {
-                println!("no topics in namespace {:?}", bus.namespace());
+                out!("no topics in namespace {:?}", bus.namespace());
             } else {
                 let w = map.keys().map(String::len).max().unwrap_or(5).max(5);
-                println!(
+                out!(
                     "{:w$}  {:24}  {:>4}  {:>4}",
-                    "TOPIC", "TYPE", "PUBS", "SUBS"
+                    "TOPIC",
+                    "TYPE",
+                    "PUBS",
+                    "SUBS"
                 );
                 for (t, i) in &map {
-                    println!(
+                    out!(
                         "{t:w$}  {:24}  {:>4}  {:>4}",
                         i.types.join("|"),
                         i.publishers.len(),
@@ -173,18 +187,18 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 );
                 return Ok(1);
             };
-            println!("topic:       {topic}");
-            println!("key:         {}", bus.topic_key(&topic));
-            println!("type:        {}", info.types.join(" | "));
-            println!("publishers:  {}", info.publishers.join(", "));
-            println!("subscribers: {}", info.subscribers.join(", "));
+            out!("topic:       {topic}");
+            out!("key:         {}", bus.topic_key(&topic));
+            out!("type:        {}", info.types.join(" | "));
+            out!("publishers:  {}", info.publishers.join(", "));
+            out!("subscribers: {}", info.subscribers.join(", "));
             for t in &info.types {
                 match msg::lookup(t) {
-                    Ok(e) => println!(
+                    Ok(e) => out!(
                         "shape of {t}:\n{}",
                         serde_json::to_string_pretty(&(e.example)())?
                     ),
-                    Err(e) => println!("{e}"),
+                    Err(e) => out!("{e}"),
                 }
             }
             Ok(0)
@@ -232,7 +246,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                         } else {
                             v.to_string()
                         };
-                        println!("{s}");
+                        out!("{s}");
                         printed += 1;
                         if count.is_some_and(|c| printed >= c) {
                             return Ok(0);
@@ -282,10 +296,12 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 let now = Instant::now();
                 if now >= report_at {
                     report_at = now + Duration::from_secs(1);
-                    print_rate(&topic, &stamps, total, json);
+                    if !print_rate(&topic, &stamps, total, json) {
+                        return Ok(0);
+                    }
                 }
                 if end.is_some_and(|e| now >= e) {
-                    print_rate(&topic, &stamps, total, json);
+                    let _ = print_rate(&topic, &stamps, total, json);
                     return Ok(if total > 0 { 0 } else { 1 });
                 }
             }
@@ -415,17 +431,29 @@ fn merge(
     }
 }
 
-fn print_rate(topic: &str, stamps: &std::collections::VecDeque<Instant>, total: u64, json: bool) {
+fn print_rate(
+    topic: &str,
+    stamps: &std::collections::VecDeque<Instant>,
+    total: u64,
+    json: bool,
+) -> bool {
+    let mut ok = true;
     if stamps.len() < 2 {
         if json {
-            println!(
+            ok &= writeln!(
+                std::io::stdout().lock(),
                 "{}",
                 serde_json::json!({"topic": topic, "messages": total, "rate_hz": 0.0})
-            );
+            )
+            .is_ok();
         } else {
-            println!("{topic}: {total} messages, not enough for a rate");
+            ok &= writeln!(
+                std::io::stdout().lock(),
+                "{topic}: {total} messages, not enough for a rate"
+            )
+            .is_ok();
         }
-        return;
+        return ok;
     }
     let intervals: Vec<f64> = stamps
         .iter()
@@ -439,15 +467,16 @@ fn print_rate(topic: &str, stamps: &std::collections::VecDeque<Instant>, total: 
     let max = intervals.iter().copied().fold(0.0, f64::max);
     let rate = if mean > 0.0 { 1.0 / mean } else { 0.0 };
     if json {
-        println!(
+        ok &= writeln!(std::io::stdout().lock(),
             "{}",
             serde_json::json!({"topic": topic, "messages": total, "rate_hz": rate, "min_s": min, "max_s": max, "jitter_std_s": var.sqrt(), "window": intervals.len()})
-        );
+        ).is_ok();
     } else {
-        println!(
+        ok &= writeln!(std::io::stdout().lock(),
             "{topic}: rate {rate:.2} Hz  min {min:.4} s  max {max:.4} s  jitter (std dev) {:.5} s  window {}",
             var.sqrt(),
             intervals.len()
-        );
+        ).is_ok();
     }
+    ok
 }
