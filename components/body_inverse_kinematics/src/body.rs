@@ -181,6 +181,12 @@ impl BodyIk {
 
     /// Solves a request with its own time budget (`max_time_s`, on the monotonic clock).
     pub fn solve(&mut self, req: &IkRequest) -> Result<IkResult, IkError> {
+        if !(req.max_time_s.is_finite() && req.max_time_s >= 0.0) {
+            return Err(IkError::InvalidRequest(format!(
+                "max_time_s must be finite and >= 0, got {}",
+                req.max_time_s
+            )));
+        }
         let mut deadline = MonotonicDeadline::after_s(req.max_time_s);
         self.solve_with_deadline(req, &mut deadline)
     }

@@ -150,7 +150,12 @@ fn point_box(p: &Vector3<f64>, half: &Vector3<f64>) -> f64 {
 }
 
 /// Distance from segment `a-b` to the box (convex in the segment parameter: golden section).
-fn segment_box(a: &Point3<f64>, b: &Point3<f64>, pose: &Isometry3<f64>, half: &Vector3<f64>) -> f64 {
+fn segment_box(
+    a: &Point3<f64>,
+    b: &Point3<f64>,
+    pose: &Isometry3<f64>,
+    half: &Vector3<f64>,
+) -> f64 {
     let inv = pose.inverse();
     let la = (inv * a).coords;
     let lb = (inv * b).coords;
@@ -383,7 +388,11 @@ impl SelfCollision {
 
     /// The first intersecting checked pair for full joint values `q` (model joint order), among
     /// pairs where at least one link has `moving[link]` true (`None`: all pairs).
-    pub fn first_collision(&mut self, q: &[f64], moving: Option<&[bool]>) -> Option<(usize, usize)> {
+    pub fn first_collision(
+        &mut self,
+        q: &[f64],
+        moving: Option<&[bool]>,
+    ) -> Option<(usize, usize)> {
         self.update(q);
         for &(a, b) in &self.pairs {
             if let Some(m) = moving
@@ -433,23 +442,98 @@ impl SelfCollision {
 mod tests {
     use super::*;
 
+    fn loki() -> RobotModel {
+        RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn loki_pair_list_follows_the_rules() {
+        let model = loki();
+        let mut c = SelfCollision::new(&model);
+        // Checked: parts that can really meet.
+        for (a, b) in [
+            ("left_hand", "torso"),
+            ("left_forearm", "torso"),
+            ("left_hand", "right_hand"),
+            ("left_hand", "head"),
+            ("left_hand", "base_link"),
+            ("left_finger_distal", "torso"),
+            ("right_forearm", "left_forearm"),
+        ] {
+            assert!(c.checks_pair(a, b), "{a} - {b}");
+        }
+        // Not checked: adjacent, rigidly attached, in contact at home, markers.
+        for (a, b) in [
+            ("left_upper_arm", "left_elbow_link"),
+            ("base_link", "torso"),
+            ("left_upper_arm", "torso"),
+            ("left_hand_center", "torso"),
+        ] {
+            assert!(!c.checks_pair(a, b), "{a} - {b}");
+        }
+        assert!(c.pair_count() > 300, "{}", c.pair_count());
+        // Home is collision-free; the left hand pushed into the torso is not.
+        let mut q: Vec<f64> = model
+            .joints
+            .iter()
+            .map(|j| 0.0_f64.clamp(j.limits.lower, j.limits.upper))
+            .collect();
+        assert_eq!(c.colliding_pair(&q), None);
+        let idx = |n: &str| model.joints.iter().position(|j| j.name == n).unwrap();
+        // Upper arm down and rolled in, elbow at 90° (forearm forward), shoulder yaw swinging the
+        // forearm inwards through the chest (one of the two yaw signs points inwards).
+        q[idx("left_shoulder_roll")] = -0.3;
+        q[idx("left_elbow")] = -1.57;
+        let mut hit = None;
+        for yaw in [1.5, -1.5] {
+            q[idx("left_shoulder_yaw")] = yaw;
+            hit = hit.or(c.colliding_pair(&q));
+        }
+        let hit = hit.expect("forearm across the chest");
+        assert!(hit.b == "torso" || hit.a == "torso", "{hit:?}");
+    }
+
     #[test]
     fn segment_distances_match_hand_computed_cases() {
         let p = |x, y, z| Point3::new(x, y, z);
         // Parallel segments 1 apart.
-        let d = segment_segment(&p(0., 0., 0.), &p(1., 0., 0.), &p(0., 1., 0.), &p(1., 1., 0.));
+        let d = segment_segment(
+            &p(0., 0., 0.),
+            &p(1., 0., 0.),
+            &p(0., 1., 0.),
+            &p(1., 1., 0.),
+        );
         assert!((d - 1.0).abs() < 1e-12);
         // Crossing segments (skew by 0.5 in z).
-        let d = segment_segment(&p(-1., 0., 0.), &p(1., 0., 0.), &p(0., -1., 0.5), &p(0., 1., 0.5));
+        let d = segment_segment(
+            &p(-1., 0., 0.),
+            &p(1., 0., 0.),
+            &p(0., -1., 0.5),
+            &p(0., 1., 0.5),
+        );
         assert!((d - 0.5).abs() < 1e-12);
         // Point to box: 0.3 beyond the +x face.
         let h = Vector3::new(0.5, 0.5, 0.5);
         assert!((point_box(&Vector3::new(0.8, 0.0, 0.0), &h) - 0.3).abs() < 1e-12);
         // Segment passing over a box corner region.
-        let d = segment_box(&p(-2., 0., 1.0), &p(2., 0., 1.0), &Isometry3::identity(), &h);
+        let d = segment_box(
+            &p(-2., 0., 1.0),
+            &p(2., 0., 1.0),
+            &Isometry3::identity(),
+            &h,
+        );
         assert!((d - 0.5).abs() < 1e-7, "{d}");
         // Segment through the box.
-        let d = segment_box(&p(-2., 0.1, 0.0), &p(2., 0.1, 0.0), &Isometry3::identity(), &h);
+        let d = segment_box(
+            &p(-2., 0.1, 0.0),
+            &p(2., 0.1, 0.0),
+            &Isometry3::identity(),
+            &h,
+        );
         assert_eq!(d, 0.0);
     }
 }

@@ -38,6 +38,8 @@ pub mod trajectory;
 pub mod types;
 
 pub use body::{BodyIk, IkError};
-pub use solver::{Deadline, Goal, IkSolver, MonotonicDeadline, Residual, SolverOptions, Tolerance};
+pub use solver::{
+    AttemptLimits, Deadline, Goal, IkSolver, MonotonicDeadline, Residual, SolverOptions, Tolerance,
+};
 pub use trajectory::Trajectory;
 pub use types::{IkRequest, IkResult, IkTarget, UnreachableCause};

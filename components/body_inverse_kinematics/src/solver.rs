@@ -16,7 +16,7 @@
 //! - **Joint limits**: every trial configuration is clamped into the limits before it is
 //!   evaluated (projection), so every configuration the solver ever holds is within the limits.
 //! - **Restarts**: the first attempt starts from the caller's configuration; when it stalls
-//!   (no progress, or [`SolverOptions::max_iterations`] reached) the solver restarts from a
+//!   (no progress, or out of iterations: [`AttemptLimits`]) the solver restarts from a
 //!   uniformly random configuration within the limits (seeded, deterministic) until the target is
 //!   reached, the [`Deadline`] expires or [`SolverOptions::max_attempts`] is used up. Solutions
 //!   that the caller's `accept` hook refuses (self-collision) also trigger a restart.
@@ -149,33 +149,56 @@ impl Deadline for MonotonicDeadline {
     }
 }
 
+/// When one descent (attempt) gives up: after `max_iterations` steps (accepted or rejected), or
+/// when the weighted squared error `E` fell by less than `stall_fraction` over `stall_window`
+/// accepted steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttemptLimits {
+    /// Steps per attempt.
+    pub max_iterations: u32,
+    /// Minimum relative decrease of `E` over [`AttemptLimits::stall_window`] accepted steps.
+    pub stall_fraction: f64,
+    /// Window of the stall test (accepted steps).
+    pub stall_window: u32,
+}
+
 /// Tuning of the solver.
+///
+/// The first attempt (from the caller's configuration, usually the current one) is patient, so
+/// that a solution close to the current posture is preferred (smooth tracking); most random
+/// restarts give up early, since a fresh start is cheaper than a slow descent (on the 7-joint arm
+/// this halves the 99th percentile of the solve time), but every 4th restart is patient again, for
+/// solutions against a joint limit, where the clamped descent converges slowly.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverOptions {
-    /// Iterations (accepted or rejected steps) per attempt.
-    pub max_iterations: u32,
-    /// Attempts (the first from the start configuration, the others random).
+    /// Limits of the first attempt.
+    pub first_attempt: AttemptLimits,
+    /// Limits of each random restart.
+    pub restart: AttemptLimits,
+    /// Attempts in all (the first from the start configuration, the others random).
     pub max_attempts: u32,
     /// Bias `b` of the damping `λ = μ (E + b)` (m² scale).
     pub damping_bias: f64,
     /// Smallest `μ`.
     pub mu_min: f64,
-    /// An attempt stops when `E` fell by less than this fraction over
-    /// [`SolverOptions::stall_window`] accepted steps.
-    pub stall_fraction: f64,
-    /// See [`SolverOptions::stall_fraction`].
-    pub stall_window: u32,
 }
 
 impl Default for SolverOptions {
     fn default() -> Self {
         Self {
-            max_iterations: 60,
+            first_attempt: AttemptLimits {
+                max_iterations: 60,
+                stall_fraction: 0.05,
+                stall_window: 6,
+            },
+            restart: AttemptLimits {
+                max_iterations: 25,
+                stall_fraction: 0.2,
+                stall_window: 2,
+            },
             max_attempts: 100_000,
             damping_bias: 1e-6,
             mu_min: 1e-3,
-            stall_fraction: 0.05,
-            stall_window: 6,
         }
     }
 }
@@ -256,7 +279,10 @@ fn evaluate(goal: &Goal, tip: &Isometry3<f64>) -> (Vector6<f64>, Residual) {
             let angle = p.cross(&z).norm().atan2(along);
             (
                 Vector6::new(stick.x, stick.y, stick.z, 0.0, 0.0, 0.0),
-                Residual { m: perp, rad: angle },
+                Residual {
+                    m: perp,
+                    rad: angle,
+                },
             )
         }
     }
@@ -390,7 +416,14 @@ impl IkSolver {
                 }
             }
             report.attempts += 1;
-            let (res, iters) = self.attempt(goal, tol);
+            // The first attempt and every 4th restart are patient (solutions at joint limits
+            // converge slowly under clamping); the others give up early.
+            let limits = if report.attempts % 4 == 1 {
+                self.opts.first_attempt
+            } else {
+                self.opts.restart
+            };
+            let (res, iters) = self.attempt(goal, tol, &limits);
             report.iterations += iters;
             let ok = res.within(tol);
             if ok && accept(&self.q) {
@@ -433,7 +466,7 @@ impl IkSolver {
 
     /// One damped least-squares descent from `self.q`; leaves the result in `self.q` and returns
     /// its residual and the number of iterations.
-    fn attempt(&mut self, goal: &Goal, tol: &Tolerance) -> (Residual, u32) {
+    fn attempt(&mut self, goal: &Goal, tol: &Tolerance, lim: &AttemptLimits) -> (Residual, u32) {
         let n = self.dof();
         let opts = self.opts;
         let mut tip = self.chain.fk_unchecked(&self.q);
@@ -445,7 +478,7 @@ impl IkSolver {
         let mut window_len = 0;
         let mut need_jacobian = true;
         let mut a = Matrix6::<f64>::zeros();
-        while iters < opts.max_iterations {
+        while iters < lim.max_iterations {
             if res.within(tol) {
                 break;
             }
@@ -489,8 +522,8 @@ impl IkSolver {
                 mu = (mu * 0.5).max(opts.mu_min);
                 need_jacobian = true;
                 window_len += 1;
-                if window_len >= opts.stall_window {
-                    if energy > window_start * (1.0 - opts.stall_fraction) && !res.within(tol) {
+                if window_len >= lim.stall_window {
+                    if energy > window_start * (1.0 - lim.stall_fraction) && !res.within(tol) {
                         break;
                     }
                     window_start = energy;
@@ -530,5 +563,105 @@ impl IkSolver {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deep_representation::kinematics::RobotModel;
+
+    fn loki() -> RobotModel {
+        RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn gaze_stick_jacobian_matches_finite_differences() {
+        let chain = loki().body_part("neck").unwrap();
+        let mut s = IkSolver::new(chain.clone(), SolverOptions::default());
+        let q = [0.3, -0.2, 0.1, 0.4];
+        let point = Vector3::new(1.2, 0.5, 0.3);
+        let goal = Goal::Gaze { point };
+        let tip = chain.jacobian_into(&q, &mut s.jac).unwrap();
+        s.task_jacobian(&goal, &tip);
+        let d = (point - tip.translation.vector).norm();
+        let stick = |q: &[f64]| {
+            let t = chain.fk(q).unwrap();
+            t.translation.vector + (t.rotation * Vector3::z()) * d
+        };
+        let h = 1e-7;
+        for i in 0..4 {
+            let mut qp = q;
+            qp[i] += h;
+            let fd = (stick(&qp) - stick(&q)) / h;
+            for k in 0..3 {
+                assert!((s.jac[(k, i)] - fd[k]).abs() < 1e-5, "col {i} row {k}");
+                assert_eq!(s.jac[(k + 3, i)], 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn weighted_pose_error_and_residual() {
+        let target = Isometry3::translation(1.0, 2.0, 3.0);
+        let tip = Isometry3::identity();
+        let w = Vector6::new(2.0, 0.0, 1.0, 0.0, 0.0, 0.0);
+        let (e, r) = evaluate(&Goal::Pose { target, weights: w }, &tip);
+        assert_eq!(e, Vector6::new(2.0, 0.0, 3.0, 0.0, 0.0, 0.0));
+        // The residual is unweighted, over the weighted axes only (x and z).
+        assert!((r.m - 10f64.sqrt()).abs() < 1e-12);
+        assert_eq!(r.rad, 0.0);
+    }
+
+    #[test]
+    fn damping_handles_a_nearly_singular_arm_and_restarts_escape_a_singular_one() {
+        // Arm hanging nearly straight (elbow at -0.05 rad, close to the singularity for vertical
+        // motion) and a target 5 cm above the hand: the damped steps converge in one attempt.
+        let chain = loki().body_part("left_arm_4").unwrap();
+        let mut s = IkSolver::new(chain.clone(), SolverOptions::default());
+        let straight = [0.0, 0.0, 0.0, 0.0];
+        let p = chain.fk(&straight).unwrap().translation.vector + Vector3::new(0.0, 0.0, 0.05);
+        let goal = Goal::position(p);
+        let tol = Tolerance::default();
+        let no_restart = &mut || true;
+        let r = s.solve(
+            &goal,
+            &tol,
+            &[0.0, 0.0, 0.0, -0.05],
+            0,
+            no_restart,
+            &mut |_: &[f64]| true,
+        );
+        assert!(r.reached, "{r:?}");
+        assert_eq!(r.attempts, 1);
+        assert!(chain.within_limits(s.solution()));
+        // Exactly straight, the gradient towards the target is zero (a stationary point): the
+        // first attempt cannot leave it, a random restart does.
+        let r = s.solve(
+            &goal,
+            &tol,
+            &straight,
+            0,
+            &mut || true,
+            &mut |_: &[f64]| true,
+        );
+        assert!(!r.reached);
+        let mut budget = 0;
+        let r = s.solve(
+            &goal,
+            &tol,
+            &straight,
+            0,
+            &mut || {
+                budget += 1;
+                budget > 20
+            },
+            &mut |_: &[f64]| true,
+        );
+        assert!(r.reached && r.attempts > 1, "{r:?}");
     }
 }

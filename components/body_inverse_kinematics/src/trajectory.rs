@@ -69,7 +69,13 @@ impl Trajectory {
         for i in 0..n {
             let v = max_velocity[i];
             let a = max_acceleration.map_or(f64::INFINITY, |a| a[i]);
-            if !start[i].is_finite() || !goal[i].is_finite() || v.is_nan() || v <= 0.0 || a.is_nan() || a <= 0.0 {
+            if !start[i].is_finite()
+                || !goal[i].is_finite()
+                || v.is_nan()
+                || v <= 0.0
+                || a.is_nan()
+                || a <= 0.0
+            {
                 return Err(TrajectoryError::Invalid(i));
             }
             let d = (goal[i] - start[i]).abs();
@@ -173,7 +179,9 @@ mod tests {
         assert_eq!(tr.sample(tr.duration_s()), goal.to_vec());
         assert_eq!(tr.sample(1e9), goal.to_vec());
         assert_eq!(tr.sample(-1.0), start.to_vec());
-        assert!(tr.sample(0.5 * tr.duration_s())[0] > 0.7 && tr.sample(0.5 * tr.duration_s())[0] < 0.8);
+        assert!(
+            tr.sample(0.5 * tr.duration_s())[0] > 0.7 && tr.sample(0.5 * tr.duration_s())[0] < 0.8
+        );
     }
 
     #[test]
