@@ -81,7 +81,7 @@
 //! [`service`] serves the graph over the bus (binary `deep_representation`: node, transform,
 //! update, propose, predicate, fork, PDDL, snapshot and restore services; every change on
 //! `dr/changes`); [`persist`] keeps it in a state folder (snapshot + append-only change log) so a
-//! restart loses nothing; [`bench`] holds the in-process lookup benchmark (binary `bench_dr` adds
+//! restart loses nothing; [`mod@bench`] holds the in-process lookup benchmark (binary `bench_dr` adds
 //! the bus round trip).
 //!
 //! ## Example

@@ -205,10 +205,9 @@ impl Store {
                         Ok(()) => format!(" (kept as {})", aside.display()),
                         Err(re) => format!(" (could not set it aside: {re})"),
                     };
-                    report.problems.push(format!(
-                        "corrupt snapshot {}: {e}{kept}",
-                        path.display()
-                    ));
+                    report
+                        .problems
+                        .push(format!("corrupt snapshot {}: {e}{kept}", path.display()));
                 }
             }
         }
@@ -404,7 +403,12 @@ mod tests {
     }
 
     /// A running service in miniature: apply changes with the graph's log on and append them.
-    fn change(store: &mut Store, g: &mut SceneGraph, seq: &mut u64, f: impl FnOnce(&mut SceneGraph)) {
+    fn change(
+        store: &mut Store,
+        g: &mut SceneGraph,
+        seq: &mut u64,
+        f: impl FnOnce(&mut SceneGraph),
+    ) {
         g.enable_log();
         f(g);
         let lines: Vec<LogLine> = g
@@ -502,7 +506,11 @@ mod tests {
         store.compact(&g, seq).unwrap(); // snapshot.json has the cup; prev has not, prev log has it
         change(&mut store, &mut g, &mut seq, |g| paint_ball(g, "red"));
         drop(store);
-        std::fs::write(dir.join(SNAPSHOT_FILE), "{\"format\": \"robocog-dr-state\", \"last_se").unwrap();
+        std::fs::write(
+            dir.join(SNAPSHOT_FILE),
+            "{\"format\": \"robocog-dr-state\", \"last_se",
+        )
+        .unwrap();
 
         let (_s, g2, report) = Store::open(&dir, StoreOptions::default(), scene).unwrap();
         assert_eq!(report.corrupt_snapshots, 1);
@@ -551,8 +559,16 @@ mod tests {
         let (_s, g2, report) = Store::open(&dir, StoreOptions::default(), scene).unwrap();
         assert_eq!(report.bad_lines, 2, "{report:?}");
         assert_eq!(report.replayed, 2);
-        assert!(report.problems[0].contains("changes.log:2:"), "{:?}", report.problems);
-        assert!(report.problems[1].contains("changes.log:4:"), "{:?}", report.problems);
+        assert!(
+            report.problems[0].contains("changes.log:2:"),
+            "{:?}",
+            report.problems
+        );
+        assert!(
+            report.problems[1].contains("changes.log:4:"),
+            "{:?}",
+            report.problems
+        );
         assert!(g2.contains("cup"));
         assert_eq!(colour(&g2), Some(AttrValue::Text("green".into())));
         assert_eq!(report.last_seq, 3);

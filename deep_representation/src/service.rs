@@ -387,7 +387,9 @@ impl Dr {
         if let Err(e) = store.append(lines) {
             self.bus.counters().incr("dr/persist_errors");
             tracing::error!("change applied but NOT persisted: {e}");
-            return Err(internal(format!("the change was applied but not persisted: {e}")));
+            return Err(internal(format!(
+                "the change was applied but not persisted: {e}"
+            )));
         }
         if store.compaction_due() {
             match store.compact(&live.graph, live.last_seq) {
@@ -435,7 +437,11 @@ impl Dr {
                 .filter_map(|c| g.node_by_id(*c).map(|c| c.name.clone()))
                 .collect(),
             edge: edge.into(),
-            joint_value: if joint.is_empty() { 0.0 } else { n.edge.value() },
+            joint_value: if joint.is_empty() {
+                0.0
+            } else {
+                n.edge.value()
+            },
             joint,
             pose: transform_to_msg(n.edge.current()),
             attributes: n
@@ -705,7 +711,10 @@ impl Dr {
     }
 
     /// `dr/snapshot`.
-    pub async fn snapshot(&self, _req: m::SnapshotRequest) -> Result<m::SnapshotData, ServiceError> {
+    pub async fn snapshot(
+        &self,
+        _req: m::SnapshotRequest,
+    ) -> Result<m::SnapshotData, ServiceError> {
         let live = self.live.read().await;
         Ok(m::SnapshotData {
             header: Default::default(),
@@ -733,12 +742,17 @@ impl Dr {
             restore: Some(snap),
         };
         self.persist(&mut live, std::slice::from_ref(&line))?;
+        let live = &mut *live;
         if let Some(store) = live.store.as_mut()
             && let Err(e) = store.compact(&live.graph, seq)
         {
             tracing::warn!("compaction after a restore failed (the log holds it): {e}");
         }
-        tracing::info!(nodes = live.graph.len(), seq, "state replaced by a snapshot");
+        tracing::info!(
+            nodes = live.graph.len(),
+            seq,
+            "state replaced by a snapshot"
+        );
         let msg = m::DrChange {
             header: interfaces::Header::new("world"),
             seq,
@@ -819,16 +833,17 @@ fn log_recovery(dir: &Path, r: &RecoveryReport) {
 pub async fn start(bus: Bus, config: ServiceConfig) -> anyhow::Result<Running> {
     let (mut graph, store, recovery, last_seq) = match &config.state_dir {
         Some(dir) => {
-            let (store, graph, report) =
-                Store::open(dir, config.store, || config.start_scene())?;
+            let (store, graph, report) = Store::open(dir, config.store, || config.start_scene())?;
             log_recovery(dir, &report);
             let counters = bus.counters();
-            counters
-                .counter("dr/recovery_bad_log_lines")
-                .fetch_add(report.bad_lines as u64, std::sync::atomic::Ordering::Relaxed);
-            counters
-                .counter("dr/recovery_corrupt_snapshots")
-                .fetch_add(report.corrupt_snapshots as u64, std::sync::atomic::Ordering::Relaxed);
+            counters.counter("dr/recovery_bad_log_lines").fetch_add(
+                report.bad_lines as u64,
+                std::sync::atomic::Ordering::Relaxed,
+            );
+            counters.counter("dr/recovery_corrupt_snapshots").fetch_add(
+                report.corrupt_snapshots as u64,
+                std::sync::atomic::Ordering::Relaxed,
+            );
             let seq = report.last_seq;
             (graph, Some(store), Some(report), seq)
         }

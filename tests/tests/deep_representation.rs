@@ -45,8 +45,7 @@ async fn call_until_up<Q: interfaces::Message, R: interfaces::Message>(
     loop {
         match bus.call(svc, req, Duration::from_secs(2)).await {
             Ok(r) => return r,
-            Err(e) if Instant::now() < deadline => {
-                let _ = e;
+            Err(_) if Instant::now() < deadline => {
                 tokio::time::sleep(Duration::from_millis(100)).await;
             }
             Err(e) => panic!("{} did not answer within {within:?}: {e}", svc.name()),
