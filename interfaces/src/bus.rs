@@ -104,7 +104,12 @@ struct Inner {
     counters: Arc<Counters>,
     shm_enabled: bool,
     shm: OnceLock<Option<Arc<ShmProvider<PosixShmProviderBackend>>>>,
-    _token: Option<LivelinessToken>,
+    /// The component's liveliness token, once declared.
+    token: tokio::sync::Mutex<Option<LivelinessToken>>,
+    /// Services still to be served before the component announces itself (see
+    /// [`BusOptions::ready_after_services`]); `None` once announced or when it never will be.
+    pending_services: tokio::sync::Mutex<Option<std::collections::HashSet<String>>>,
+    since_ms: i64,
 }
 
 /// One process' connection to the bus (cheap to clone).
@@ -128,6 +133,9 @@ pub struct BusOptions {
     /// Declare the component's liveliness token (components do; command-line tools do not, so
     /// they never show up in `robocog component list`).
     pub announce: bool,
+    /// Announce only once all these services are served (so a component is "up" for the
+    /// launcher when its services answer, not before). Empty: announce at once.
+    pub ready_after_services: Vec<String>,
     pub clock: Clock,
 }
 
@@ -139,7 +147,7 @@ impl Bus {
             component,
             BusOptions {
                 announce: true,
-                clock: Clock::System,
+                ..Default::default()
             },
         )
         .await
@@ -165,26 +173,10 @@ impl Bus {
         let host = gethostname::gethostname()
             .to_string_lossy()
             .replace(['/', '*', '$', '?', '#'], "_");
-        let token = if options.announce {
-            let since_ms = crate::header::system_now_ns() / 1_000_000;
-            let key = liveliness::component_key(
-                &args.namespace,
-                component,
-                &host,
-                std::process::id(),
-                since_ms,
-            );
-            Some(
-                session
-                    .liveliness()
-                    .declare_token(key)
-                    .await
-                    .map_err(zerr("declaring the component's liveliness token"))?,
-            )
-        } else {
-            None
-        };
-        Ok(Bus {
+        let since_ms = crate::header::system_now_ns() / 1_000_000;
+        let pending = (options.announce && !options.ready_after_services.is_empty())
+            .then(|| options.ready_after_services.iter().cloned().collect());
+        let bus = Bus {
             inner: Arc::new(Inner {
                 session,
                 namespace: args.namespace.clone(),
@@ -194,9 +186,53 @@ impl Bus {
                 counters: Arc::new(Counters::default()),
                 shm_enabled: !args.no_shm,
                 shm: OnceLock::new(),
-                _token: token,
+                token: tokio::sync::Mutex::new(None),
+                pending_services: tokio::sync::Mutex::new(pending),
+                since_ms,
             }),
-        })
+        };
+        if options.announce && options.ready_after_services.is_empty() {
+            bus.announce().await?;
+        }
+        Ok(bus)
+    }
+
+    /// Declare the component's liveliness token: from now on it is up.
+    async fn announce(&self) -> Result<(), BusError> {
+        let key = liveliness::component_key(
+            &self.inner.namespace,
+            &self.inner.component,
+            &self.inner.host,
+            std::process::id(),
+            self.inner.since_ms,
+        );
+        let token = self
+            .inner
+            .session
+            .liveliness()
+            .declare_token(key)
+            .await
+            .map_err(zerr("declaring the component's liveliness token"))?;
+        *self.inner.token.lock().await = Some(token);
+        Ok(())
+    }
+
+    /// Service `name` is now served; announce the component when it was the last one awaited.
+    async fn service_ready(&self, name: &str) -> Result<(), BusError> {
+        let mut pending = self.inner.pending_services.lock().await;
+        let done = match pending.as_mut() {
+            Some(set) => {
+                set.remove(name);
+                set.is_empty()
+            }
+            None => false,
+        };
+        if done {
+            *pending = None;
+            drop(pending);
+            self.announce().await?;
+        }
+        Ok(())
     }
 
     pub fn namespace(&self) -> &str {
@@ -400,6 +436,7 @@ impl Bus {
                 });
             }
         });
+        self.service_ready(name).await?;
         Ok(ServiceHandle {
             task,
             _token: token,

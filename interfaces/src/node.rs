@@ -173,16 +173,14 @@ where
         }
     };
     let result = runtime.block_on(async move {
-        let bus = Bus::open_with(
-            &args.connect,
-            &name,
-            BusOptions {
-                announce: true,
-                clock: Clock::System,
-            },
-        )
-        .await?;
-        tracing::info!(namespace = bus.namespace(), "{name} is up");
+        // Up (for the launcher) once every service it describes is served.
+        let options = BusOptions {
+            announce: true,
+            ready_after_services: interface.serves.iter().map(|p| p.name.clone()).collect(),
+            clock: Clock::System,
+        };
+        let bus = Bus::open_with(&args.connect, &name, options).await?;
+        tracing::info!(namespace = bus.namespace(), "{name} joined the bus");
         let (tx, shutdown) = Shutdown::new();
         tokio::spawn(async move {
             wait_for_signal().await;

@@ -224,3 +224,49 @@ args = ["--role", "idle"]
     assert!(status.success(), "{}", launch.lines.all().join("\n"));
     assert!(launch.lines.count(|l| l.contains("scenario completed")) == 1);
 }
+
+#[test]
+fn a_serving_component_is_up_only_once_its_services_answer() {
+    // The echo server takes its time before serving; the dependent starts only after, and a
+    // call made as soon as the server is "up" is answered.
+    let ns = unique_namespace("ready");
+    let m = write_manifest(
+        &scratch(&ns),
+        "graph.toml",
+        r#"
+[[component]]
+name = "server"
+binary = "@FIXTURE@"
+args = ["--role", "echo-server", "--serve-after-ms", "800"]
+
+[[component]]
+name = "client"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+depends_on = ["server"]
+"#,
+    );
+    let launch = Launch::start(&m, &ns, &[]);
+    let up = launch
+        .lines
+        .wait_for("server up", Duration::from_secs(20), |l| {
+            l.contains("server is up")
+        });
+    let ms: u64 = up
+        .split('(')
+        .nth(1)
+        .and_then(|s| s.split(", ").nth(1))
+        .and_then(|s| s.trim_end_matches(" ms)").parse().ok())
+        .unwrap();
+    assert!(
+        ms >= 800,
+        "up after {ms} ms, before its service was served: {up}"
+    );
+    let out = launch.robocog(&["topic", "list"], Duration::from_secs(15));
+    assert!(out.status.success());
+    launch
+        .lines
+        .wait_for("client up", Duration::from_secs(20), |l| {
+            l.contains("client is up")
+        });
+}

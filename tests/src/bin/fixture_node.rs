@@ -33,6 +33,9 @@ struct Args {
     rate: f64,
     #[arg(long, default_value_t = 0)]
     delay_ms: u64,
+    /// Echo server: wait this long before serving (a slow start).
+    #[arg(long, default_value_t = 0)]
+    serve_after_ms: u64,
     /// Exit on its own after this many seconds, with --exit-code.
     #[arg(long)]
     exit_after: Option<f64>,
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
         args.exit_code,
         args.ignore_sigterm,
     );
+    let serve_after = Duration::from_millis(args.serve_after_ms);
     node::run(args.node, interface, move |bus, mut shutdown| async move {
         if let Some(s) = exit_after {
             tokio::spawn(async move {
@@ -94,6 +98,7 @@ fn main() -> ExitCode {
                     }
                 }
                 Role::EchoServer => {
+                    tokio::time::sleep(serve_after).await;
                     let _serving = bus
                         .serve(&topics::ECHO, move |req: Text| async move {
                             tokio::time::sleep(Duration::from_millis(delay)).await;
