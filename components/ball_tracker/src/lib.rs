@@ -7,7 +7,11 @@
 //! Conventions: frames are [`rgbd::Frame`]s (RGB8, depth in mm along the optical axis); 3D
 //! output is in the camera optical frame (z forward, x right, y down), metres; time is passed in
 //! (seconds), never read from a clock.
+//!
+//! The component ([`component`], the `ball_tracker` binary) runs the tracker on `vision/rgbd`
+//! and publishes `vision/ball` and `vision/ball_events`.
 
+pub mod component;
 pub mod hsv;
 pub mod tracker;
 pub mod types;

@@ -8,8 +8,14 @@
 //!   scene (ball, decoys, table, wall, the person's arm) with a structured-light sensor model;
 //!   [`playback::PlaybackDriver`] replays a recorded sequence in the TUM RGB-D layout.
 //! - Time is always passed in; nothing here reads the wall clock.
+//! - The component ([`component`], the `rgbd` binary) wraps a driver and publishes its frames on
+//!   `vision/rgbd` ([`convert`] maps [`Frame`] to the bus message); its sim driver moves the ball
+//!   by a scripted [`scenario`] and publishes the ground truth on `sim/ball_truth`.
 
+pub mod component;
+pub mod convert;
 pub mod playback;
+pub mod scenario;
 pub mod sim;
 pub mod types;
 

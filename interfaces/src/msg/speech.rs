@@ -36,7 +36,7 @@ impl AudioChunk {
     }
     /// The samples (interleaved), or `None` when the byte count is odd.
     pub fn samples(&self) -> Option<Vec<i16>> {
-        if self.pcm_s16le.len() % 2 != 0 {
+        if !self.pcm_s16le.len().is_multiple_of(2) {
             return None;
         }
         Some(
