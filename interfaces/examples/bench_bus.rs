@@ -2,7 +2,8 @@
 //!
 //! Three zenoh sessions in one process, joined over TCP on loopback exactly as components are:
 //! a router (as `robocog launch` hosts), a sender and an echoer, both clients of the router.
-//! - Latency: ping-pong, one-way = round trip / 2, p50 and p99, for 64 B, 4 KiB, 1 MiB and one
+//! - Latency: ping-pong, one-way = round trip / 2, p50 and p99, typed and raw round trips
+//!   interleaved one for one (both see the same load), for 64 B, 4 KiB, 1 MiB and one
 //!   640x480 RGB-D frame (RGB8 + u16 depth, 1.5 MB). Typed: `Publisher<T>`/`Subscriber<T>` with
 //!   CDR and shared memory for large payloads. Raw: `put` of the same bytes and a plain (default
 //!   FIFO) subscriber, shared memory left to zenoh's defaults.
@@ -39,125 +40,125 @@ fn summarise(mut one_way_us: Vec<f64>) -> Lat {
     }
 }
 
-/// Typed ping-pong with `Ping` messages of `size` bytes of data.
-async fn typed_ping(a: &Bus, b: &Bus, size: usize, n: usize) -> anyhow::Result<Lat> {
-    let back_pub = b.publisher(&topics::BENCH_PONG).await?;
-    let ping_sub = b.subscriber(&topics::BENCH_PING).await?;
-    let echo = tokio::spawn(async move {
-        while let Ok(mut m) = ping_sub.recv().await {
-            if back_pub.publish(&mut m).await.is_err() {
-                return;
-            }
-        }
-    });
-    let ping_pub = a.publisher(&topics::BENCH_PING).await?;
-    let pong_sub = a.subscriber(&topics::BENCH_PONG).await?;
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    let mut msg = Ping {
-        data: vec![0xab; size],
-        ..Default::default()
-    };
-    let warm = (n / 10).max(5);
-    let mut samples = Vec::with_capacity(n);
-    for i in 0..n + warm {
-        let t = Instant::now();
-        ping_pub.publish(&mut msg).await?;
-        let back = tokio::time::timeout(Duration::from_secs(5), pong_sub.recv())
-            .await
-            .map_err(|_| anyhow::anyhow!("typed ping of {size} B lost"))??;
-        let rtt = t.elapsed();
-        anyhow::ensure!(back.data.len() == size, "echo of the wrong size");
-        if i >= warm {
-            samples.push(rtt.as_secs_f64() * 1e6 / 2.0);
-        }
-    }
-    echo.abort();
-    Ok(summarise(samples))
+/// One typed round trip setup: `Ping`s (or whole RGB-D frames) echoed by the other session.
+struct TypedPair<T: interfaces::Message> {
+    publisher: interfaces::Publisher<T>,
+    back: interfaces::Subscriber<T>,
+    echo: tokio::task::JoinHandle<()>,
 }
 
-/// Typed ping-pong with whole RGB-D frames.
-async fn typed_frame(a: &Bus, b: &Bus, n: usize) -> anyhow::Result<Lat> {
-    let back_pub = b.publisher(&topics::BENCH_FRAME_BACK).await?;
-    let sub = b.subscriber(&topics::BENCH_FRAME).await?;
-    let echo = tokio::spawn(async move {
-        while let Ok(mut m) = sub.recv().await {
-            if back_pub.publish(&mut m).await.is_err() {
-                return;
+impl<T: interfaces::Message> TypedPair<T> {
+    async fn new(
+        a: &Bus,
+        b: &Bus,
+        out: &interfaces::Topic<T>,
+        back: &interfaces::Topic<T>,
+    ) -> anyhow::Result<Self> {
+        let back_pub = b.publisher(back).await?;
+        let sub = b.subscriber(out).await?;
+        let echo = tokio::spawn(async move {
+            while let Ok(mut m) = sub.recv().await {
+                if back_pub.publish(&mut m).await.is_err() {
+                    return;
+                }
             }
-        }
-    });
-    let publisher = a.publisher(&topics::BENCH_FRAME).await?;
-    let back = a.subscriber(&topics::BENCH_FRAME_BACK).await?;
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    let mut frame = RgbdFrame::blank(
-        640,
-        480,
-        Intrinsics {
-            fx: 525.0,
-            fy: 525.0,
-            cx: 319.5,
-            cy: 239.5,
-        },
-    );
-    frame.header.frame_id = "head_rgbd_optical_frame".into();
-    let warm = (n / 10).max(5);
-    let mut samples = Vec::with_capacity(n);
-    for i in 0..n + warm {
-        let t = Instant::now();
-        publisher.publish(&mut frame).await?;
-        let f = tokio::time::timeout(Duration::from_secs(5), back.recv())
-            .await
-            .map_err(|_| anyhow::anyhow!("typed frame lost"))??;
-        let rtt = t.elapsed();
-        anyhow::ensure!(f.is_consistent(), "echoed frame is malformed");
-        if i >= warm {
-            samples.push(rtt.as_secs_f64() * 1e6 / 2.0);
-        }
+        });
+        Ok(Self { publisher: a.publisher(out).await?, back: a.subscriber(back).await?, echo })
     }
-    echo.abort();
-    Ok(summarise(samples))
+
+    /// One-way latency (µs) of one round trip of `msg`.
+    async fn once(&self, msg: &mut T) -> anyhow::Result<f64> {
+        let t = Instant::now();
+        self.publisher.publish(msg).await?;
+        tokio::time::timeout(Duration::from_secs(5), self.back.recv())
+            .await
+            .map_err(|_| anyhow::anyhow!("typed {} lost", T::TYPE_NAME))??;
+        Ok(t.elapsed().as_secs_f64() * 1e6 / 2.0)
+    }
 }
 
-/// Raw zenoh ping-pong of `size` bytes: `put` and plain subscribers.
-async fn raw_ping(
-    a: &zenoh::Session,
-    b: &zenoh::Session,
-    size: usize,
-    n: usize,
-) -> anyhow::Result<Lat> {
-    let e = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let ping_key = format!("raw/bench/ping/{size}");
-    let pong_key = format!("raw/bench/pong/{size}");
-    let b_sub = b.declare_subscriber(&ping_key).await.map_err(e)?;
-    let b_pub = b.declare_publisher(pong_key.clone()).await.map_err(e)?;
-    let echo = tokio::spawn(async move {
-        while let Ok(s) = b_sub.recv_async().await {
-            if b_pub.put(s.payload().clone()).await.is_err() {
-                return;
+impl<T: interfaces::Message> Drop for TypedPair<T> {
+    fn drop(&mut self) {
+        self.echo.abort();
+    }
+}
+
+/// The same with raw zenoh: `put` of bytes and plain (default FIFO) subscribers.
+struct RawPair {
+    publisher: zenoh::pubsub::Publisher<'static>,
+    back: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    echo: tokio::task::JoinHandle<()>,
+}
+
+impl RawPair {
+    async fn new(a: &zenoh::Session, b: &zenoh::Session, tag: &str) -> anyhow::Result<Self> {
+        let e = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        let ping_key = format!("raw/bench/ping/{tag}");
+        let pong_key = format!("raw/bench/pong/{tag}");
+        let b_sub = b.declare_subscriber(ping_key.clone()).await.map_err(e)?;
+        let b_pub = b.declare_publisher(pong_key.clone()).await.map_err(e)?;
+        let echo = tokio::spawn(async move {
+            while let Ok(s) = b_sub.recv_async().await {
+                if b_pub.put(s.payload().clone()).await.is_err() {
+                    return;
+                }
             }
-        }
-    });
-    let a_pub = a.declare_publisher(ping_key.clone()).await.map_err(e)?;
-    let a_sub = a.declare_subscriber(&pong_key).await.map_err(e)?;
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    let payload = vec![0xabu8; size];
-    let warm = (n / 10).max(5);
-    let mut samples = Vec::with_capacity(n);
-    for i in 0..n + warm {
+        });
+        Ok(Self {
+            publisher: a.declare_publisher(ping_key).await.map_err(e)?,
+            back: a.declare_subscriber(pong_key).await.map_err(e)?,
+            echo,
+        })
+    }
+
+    async fn once(&self, payload: &[u8]) -> anyhow::Result<f64> {
         let t = Instant::now();
-        a_pub.put(payload.clone()).await.map_err(e)?;
-        let s = tokio::time::timeout(Duration::from_secs(5), a_sub.recv_async())
+        self.publisher.put(payload.to_vec()).await.map_err(|e| anyhow::anyhow!("{e}"))?;
+        let s = tokio::time::timeout(Duration::from_secs(5), self.back.recv_async())
             .await
-            .map_err(|_| anyhow::anyhow!("raw ping of {size} B lost"))?
+            .map_err(|_| anyhow::anyhow!("raw ping lost"))?
             .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let rtt = t.elapsed();
-        anyhow::ensure!(s.payload().len() == size, "echo of the wrong size");
+        anyhow::ensure!(s.payload().len() == payload.len(), "echo of the wrong size");
+        Ok(t.elapsed().as_secs_f64() * 1e6 / 2.0)
+    }
+}
+
+impl Drop for RawPair {
+    fn drop(&mut self) {
+        self.echo.abort();
+    }
+}
+
+/// Typed and raw round trips of `size` bytes, interleaved one for one so both see the same
+/// machine load; returns (typed, raw).
+async fn latency_pair<T: interfaces::Message>(
+    a: &Bus,
+    b: &Bus,
+    typed: (&interfaces::Topic<T>, &interfaces::Topic<T>),
+    mut msg: T,
+    raw_size: usize,
+    n: usize,
+) -> anyhow::Result<(Lat, Lat)> {
+    let tp = TypedPair::new(a, b, typed.0, typed.1).await?;
+    let rp = RawPair::new(a.session(), b.session(), &raw_size.to_string()).await?;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let payload = vec![0xabu8; raw_size];
+    let warm = (n / 10).max(5);
+    let (mut t, mut r) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for i in 0..n + warm {
+        let (ti, ri) = if i % 2 == 0 {
+            let ti = tp.once(&mut msg).await?;
+            (ti, rp.once(&payload).await?)
+        } else {
+            let ri = rp.once(&payload).await?;
+            (tp.once(&mut msg).await?, ri)
+        };
         if i >= warm {
-            samples.push(rtt.as_secs_f64() * 1e6 / 2.0);
+            t.push(ti);
+            r.push(ri);
         }
     }
-    echo.abort();
-    Ok(summarise(samples))
+    Ok((summarise(t), summarise(r)))
 }
 
 /// Messages per second, raw 8-byte puts.
@@ -250,8 +251,9 @@ async fn main() -> anyhow::Result<()> {
     let mut json = serde_json::Map::new();
     for (label, size, n) in cases {
         eprintln!("latency {label} ({n} round trips each)...");
-        let t = typed_ping(&a, &b, size, n).await?;
-        let r = raw_ping(a.session(), b.session(), size, n).await?;
+        let ping = Ping { data: vec![0xab; size], ..Default::default() };
+        let (t, r) =
+            latency_pair(&a, &b, (&topics::BENCH_PING, &topics::BENCH_PONG), ping, size, n).await?;
         json.insert(format!("typed_{label}_p50_us"), t.p50_us.into());
         json.insert(format!("typed_{label}_p99_us"), t.p99_us.into());
         json.insert(format!("raw_{label}_p50_us"), r.p50_us.into());
@@ -264,8 +266,19 @@ async fn main() -> anyhow::Result<()> {
     }
     let n_frames = 300 / scale;
     eprintln!("latency RGB-D frame ({n_frames} round trips each)...");
-    let t = typed_frame(&a, &b, n_frames).await?;
-    let r = raw_ping(a.session(), b.session(), 640 * 480 * 5, n_frames).await?;
+    let mut frame =
+        RgbdFrame::blank(640, 480, Intrinsics { fx: 525.0, fy: 525.0, cx: 319.5, cy: 239.5 });
+    frame.header.frame_id = "head_rgbd_optical_frame".into();
+    let raw_size = interfaces::codec::encoded_len(&frame);
+    let (t, r) = latency_pair(
+        &a,
+        &b,
+        (&topics::BENCH_FRAME, &topics::BENCH_FRAME_BACK),
+        frame,
+        raw_size,
+        n_frames,
+    )
+    .await?;
     json.insert("typed_rgbd_p50_us".into(), t.p50_us.into());
     json.insert("typed_rgbd_p99_us".into(), t.p99_us.into());
     json.insert("raw_rgbd_p50_us".into(), r.p50_us.into());
