@@ -1,0 +1,463 @@
+//! The dialog of seed 001 Fig. 5 as a pure state machine: what to do with each recognized
+//! utterance given its confidence, when to ask "Did you say ...?", and what a yes, a no or
+//! silence does. Time is passed in (seconds on any monotonic clock); nothing here reads a clock.
+//!
+//! With thresholds `low ≤ high` on the recognizer's confidence in [0, 1]:
+//!
+//! - **Idle**, a command heard with confidence ≥ `high`: published at once.
+//! - **Idle**, `low ≤` confidence `< high`: the robot asks "Did you say <phrase>?" and waits
+//!   (**Confirming**) for a yes or a no, by voice or from the panel, for `answer_timeout_s`.
+//!   Yes publishes the command (marked confirmed); no drops it and says so; the time-out drops it
+//!   and says so.
+//! - confidence `< low`, or out of grammar: ignored and counted; after `repeat_after` such
+//!   utterances within `repeat_window_s` the robot asks to repeat.
+//! - **Confirming**, a new command with confidence ≥ `high` replaces the question (published at
+//!   once); one between the thresholds replaces the question with a new one.
+//! - A yes or a no with no question pending is ignored (counted).
+//! - Utterances heard while the robot speaks, or within `echo_guard_s` after, are ignored: they
+//!   are most likely the robot hearing itself.
+
+use interfaces::msg::command::{Command, Game};
+use interfaces::msg::speech::Priority;
+use serde::{Deserialize, Serialize};
+
+/// Thresholds and times (s).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DialogConfig {
+    pub high: f64,
+    pub low: f64,
+    pub answer_timeout_s: f64,
+    pub repeat_after: u32,
+    pub repeat_window_s: f64,
+    pub echo_guard_s: f64,
+}
+
+impl Default for DialogConfig {
+    fn default() -> Self {
+        Self {
+            high: 0.7,
+            low: 0.3,
+            answer_timeout_s: 8.0,
+            repeat_after: 2,
+            repeat_window_s: 15.0,
+            echo_guard_s: 0.5,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ConfigError {
+    #[error("thresholds must satisfy 0 <= low <= high <= 1 (low {low}, high {high})")]
+    Thresholds { low: f64, high: f64 },
+    #[error("answer_timeout_s must be > 0 (got {0})")]
+    Timeout(f64),
+}
+
+impl DialogConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(0.0..=1.0).contains(&self.low)
+            || !(0.0..=1.0).contains(&self.high)
+            || self.low > self.high
+        {
+            return Err(ConfigError::Thresholds {
+                low: self.low,
+                high: self.high,
+            });
+        }
+        if self.answer_timeout_s.is_nan() || self.answer_timeout_s <= 0.0 {
+            return Err(ConfigError::Timeout(self.answer_timeout_s));
+        }
+        Ok(())
+    }
+}
+
+/// What the recognizer heard (the fields of `speech/utterance` the dialog uses).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heard {
+    pub game: Game,
+    pub text: String,
+    pub confidence: f64,
+    pub command: Command,
+}
+
+/// A command the dialog lets through.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Accepted {
+    pub game: Game,
+    pub command: Command,
+    pub text: String,
+    pub confidence: f64,
+    pub confirmed: bool,
+}
+
+/// Why an utterance was ignored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IgnoreReason {
+    OutOfGrammar,
+    LowConfidence,
+    AnswerWithoutQuestion,
+    RobotSpeaking,
+}
+
+/// What the component must do.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    Publish(Accepted),
+    Say {
+        text: String,
+        priority: Priority,
+    },
+    Ignored(IgnoreReason),
+    /// A pending question ended without a command (no, time-out, superseded).
+    Dropped(Command),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum State {
+    Idle,
+    Confirming { pending: Heard, deadline_s: f64 },
+}
+
+/// The dialog.
+#[derive(Debug)]
+pub struct Dialog {
+    cfg: DialogConfig,
+    state: State,
+    /// Times of recent low-confidence utterances.
+    misses: Vec<f64>,
+    speaking: bool,
+    quiet_since_s: f64,
+}
+
+impl Dialog {
+    pub fn new(cfg: DialogConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Ok(Self {
+            cfg,
+            state: State::Idle,
+            misses: Vec::new(),
+            speaking: false,
+            quiet_since_s: f64::NEG_INFINITY,
+        })
+    }
+
+    /// The command awaiting a yes or no, if any.
+    pub fn pending(&self) -> Option<Command> {
+        match &self.state {
+            State::Idle => None,
+            State::Confirming { pending, .. } => Some(pending.command),
+        }
+    }
+
+    /// The robot started (`true`) or stopped speaking.
+    pub fn robot_speaking(&mut self, now_s: f64, speaking: bool) {
+        if self.speaking && !speaking {
+            self.quiet_since_s = now_s;
+            // The person can only answer once the question is over.
+            if let State::Confirming { deadline_s, .. } = &mut self.state {
+                *deadline_s = deadline_s.max(now_s + self.cfg.answer_timeout_s);
+            }
+        }
+        self.speaking = speaking;
+    }
+
+    fn ask(&mut self, now_s: f64, heard: Heard, out: &mut Vec<Action>) {
+        out.push(Action::Say {
+            text: format!("Did you say {}?", heard.command.phrase()),
+            priority: Priority::High,
+        });
+        self.state = State::Confirming {
+            pending: heard,
+            deadline_s: now_s + self.cfg.answer_timeout_s,
+        };
+    }
+
+    fn miss(&mut self, now_s: f64, reason: IgnoreReason, out: &mut Vec<Action>) {
+        out.push(Action::Ignored(reason));
+        let window = self.cfg.repeat_window_s;
+        self.misses.retain(|t| now_s - t <= window);
+        self.misses.push(now_s);
+        if self.cfg.repeat_after > 0 && self.misses.len() >= self.cfg.repeat_after as usize {
+            self.misses.clear();
+            out.push(Action::Say {
+                text: "Sorry, I did not understand. Please repeat.".into(),
+                priority: Priority::Normal,
+            });
+        }
+    }
+
+    fn answer(&mut self, yes: bool, out: &mut Vec<Action>) {
+        let State::Confirming { pending, .. } = std::mem::replace(&mut self.state, State::Idle)
+        else {
+            out.push(Action::Ignored(IgnoreReason::AnswerWithoutQuestion));
+            return;
+        };
+        if yes {
+            out.push(Action::Say {
+                text: format!("OK, {}.", pending.command.phrase()),
+                priority: Priority::Normal,
+            });
+            out.push(Action::Publish(Accepted {
+                game: pending.game,
+                command: pending.command,
+                text: pending.text,
+                confidence: pending.confidence,
+                confirmed: true,
+            }));
+        } else {
+            out.push(Action::Dropped(pending.command));
+            out.push(Action::Say {
+                text: "Sorry. Please say the command again.".into(),
+                priority: Priority::Normal,
+            });
+        }
+    }
+
+    /// A recognized utterance at `now_s`.
+    pub fn heard(&mut self, now_s: f64, h: Heard) -> Vec<Action> {
+        let mut out = Vec::new();
+        if self.speaking || now_s - self.quiet_since_s < self.cfg.echo_guard_s {
+            out.push(Action::Ignored(IgnoreReason::RobotSpeaking));
+            return out;
+        }
+        if h.command == Command::None {
+            self.miss(now_s, IgnoreReason::OutOfGrammar, &mut out);
+            return out;
+        }
+        if h.confidence < self.cfg.low {
+            self.miss(now_s, IgnoreReason::LowConfidence, &mut out);
+            return out;
+        }
+        self.misses.clear();
+        if h.command.is_answer() {
+            self.answer(h.command == Command::Yes, &mut out);
+            return out;
+        }
+        if let State::Confirming { pending, .. } = &self.state {
+            out.push(Action::Dropped(pending.command));
+            self.state = State::Idle;
+        }
+        if h.confidence >= self.cfg.high {
+            out.push(Action::Publish(Accepted {
+                game: h.game,
+                command: h.command,
+                text: h.text,
+                confidence: h.confidence,
+                confirmed: false,
+            }));
+        } else {
+            self.ask(now_s, h, &mut out);
+        }
+        out
+    }
+
+    /// A yes/no from the command panel.
+    pub fn panel_answer(&mut self, _now_s: f64, yes: bool) -> Vec<Action> {
+        let mut out = Vec::new();
+        self.answer(yes, &mut out);
+        out
+    }
+
+    /// Time passes: a question past its deadline is dropped.
+    pub fn tick(&mut self, now_s: f64) -> Vec<Action> {
+        let mut out = Vec::new();
+        if let State::Confirming {
+            pending,
+            deadline_s,
+        } = &self.state
+            && now_s >= *deadline_s
+        {
+            let phrase = pending.command.phrase();
+            out.push(Action::Dropped(pending.command));
+            out.push(Action::Say {
+                text: format!("No answer. I ignore {phrase}."),
+                priority: Priority::Normal,
+            });
+            self.state = State::Idle;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn heard(command: Command, confidence: f64) -> Heard {
+        Heard {
+            game: Game::Touch,
+            text: command.phrase().to_string(),
+            confidence,
+            command,
+        }
+    }
+    fn dialog() -> Dialog {
+        Dialog::new(DialogConfig::default()).unwrap()
+    }
+    fn published(a: &[Action]) -> Vec<(Command, bool)> {
+        a.iter()
+            .filter_map(|x| match x {
+                Action::Publish(p) => Some((p.command, p.confirmed)),
+                _ => None,
+            })
+            .collect()
+    }
+    fn said(a: &[Action]) -> Vec<String> {
+        a.iter()
+            .filter_map(|x| match x {
+                Action::Say { text, .. } => Some(text.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn sure_commands_go_straight_through() {
+        let mut d = dialog();
+        let a = d.heard(0.0, heard(Command::TouchBall, 0.9));
+        assert_eq!(published(&a), vec![(Command::TouchBall, false)]);
+        assert!(said(&a).is_empty());
+        assert_eq!(d.pending(), None);
+        // Exactly at the high threshold counts as sure.
+        assert_eq!(published(&d.heard(1.0, heard(Command::Stop, 0.7))).len(), 1);
+    }
+
+    #[test]
+    fn unsure_command_confirmed_by_voice_yes() {
+        let mut d = dialog();
+        let a = d.heard(0.0, heard(Command::TrackBall, 0.5));
+        assert!(published(&a).is_empty());
+        assert_eq!(said(&a), vec!["Did you say track the ball?"]);
+        assert_eq!(d.pending(), Some(Command::TrackBall));
+        let a = d.heard(3.0, heard(Command::Yes, 0.4));
+        assert_eq!(published(&a), vec![(Command::TrackBall, true)]);
+        assert_eq!(d.pending(), None);
+    }
+
+    #[test]
+    fn unsure_command_rejected_by_no_or_the_panel() {
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::ScanBall, 0.5));
+        let a = d.heard(2.0, heard(Command::No, 0.8));
+        assert!(published(&a).is_empty());
+        assert!(a.contains(&Action::Dropped(Command::ScanBall)));
+        assert!(said(&a)[0].contains("again"));
+        // Panel answers work the same.
+        d.heard(10.0, heard(Command::ScanBall, 0.5));
+        let a = d.panel_answer(11.0, true);
+        assert_eq!(published(&a), vec![(Command::ScanBall, true)]);
+        d.heard(20.0, heard(Command::Quit, 0.5));
+        let a = d.panel_answer(21.0, false);
+        assert_eq!(a[0], Action::Dropped(Command::Quit));
+    }
+
+    #[test]
+    fn unanswered_question_times_out_and_says_so() {
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::TouchBall, 0.5));
+        assert!(d.tick(7.9).is_empty());
+        let a = d.tick(8.0);
+        assert_eq!(a[0], Action::Dropped(Command::TouchBall));
+        assert_eq!(said(&a), vec!["No answer. I ignore touch the ball."]);
+        assert_eq!(d.pending(), None);
+        // A late yes has no question left.
+        assert_eq!(
+            d.heard(9.0, heard(Command::Yes, 0.9)),
+            vec![Action::Ignored(IgnoreReason::AnswerWithoutQuestion)]
+        );
+        assert!(d.tick(100.0).is_empty());
+    }
+
+    #[test]
+    fn the_time_out_runs_from_the_end_of_the_question() {
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::TouchBall, 0.5));
+        d.robot_speaking(0.1, true);
+        d.robot_speaking(2.0, false);
+        assert!(d.tick(9.0).is_empty(), "deadline moved to 2 + 8 s");
+        assert_eq!(d.tick(10.0)[0], Action::Dropped(Command::TouchBall));
+    }
+
+    #[test]
+    fn low_confidence_and_out_of_grammar_are_ignored_then_a_repeat_is_asked() {
+        let mut d = dialog();
+        let a = d.heard(0.0, heard(Command::TouchBall, 0.1));
+        assert_eq!(a, vec![Action::Ignored(IgnoreReason::LowConfidence)]);
+        let a = d.heard(3.0, heard(Command::None, 0.9));
+        assert_eq!(a[0], Action::Ignored(IgnoreReason::OutOfGrammar));
+        assert_eq!(
+            said(&a),
+            vec!["Sorry, I did not understand. Please repeat."]
+        );
+        // Misses far apart do not add up.
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::TouchBall, 0.1));
+        let a = d.heard(20.0, heard(Command::TouchBall, 0.1));
+        assert!(said(&a).is_empty());
+        // A good command in between resets the count.
+        d.heard(21.0, heard(Command::Stop, 0.9));
+        assert!(said(&d.heard(22.0, heard(Command::Stop, 0.1))).is_empty());
+        // A low-confidence yes does not answer the question.
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::TouchBall, 0.5));
+        let a = d.heard(1.0, heard(Command::Yes, 0.1));
+        assert!(published(&a).is_empty());
+        assert_eq!(d.pending(), Some(Command::TouchBall));
+    }
+
+    #[test]
+    fn a_new_command_replaces_the_question() {
+        let mut d = dialog();
+        d.heard(0.0, heard(Command::TouchBall, 0.5));
+        let a = d.heard(1.0, heard(Command::Stop, 0.95));
+        assert_eq!(a[0], Action::Dropped(Command::TouchBall));
+        assert_eq!(published(&a), vec![(Command::Stop, false)]);
+        assert_eq!(d.pending(), None);
+        d.heard(2.0, heard(Command::TouchBall, 0.5));
+        let a = d.heard(3.0, heard(Command::TrackBall, 0.5));
+        assert_eq!(a[0], Action::Dropped(Command::TouchBall));
+        assert_eq!(said(&a), vec!["Did you say track the ball?"]);
+        assert_eq!(d.pending(), Some(Command::TrackBall));
+    }
+
+    #[test]
+    fn what_is_heard_while_the_robot_speaks_is_ignored() {
+        let mut d = dialog();
+        d.robot_speaking(0.0, true);
+        assert_eq!(
+            d.heard(0.5, heard(Command::TouchBall, 0.9)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        d.robot_speaking(1.0, false);
+        assert_eq!(
+            d.heard(1.3, heard(Command::TouchBall, 0.9)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        assert_eq!(
+            published(&d.heard(1.6, heard(Command::TouchBall, 0.9))).len(),
+            1
+        );
+    }
+
+    #[test]
+    fn bad_thresholds_are_refused_and_config_reads_from_toml() {
+        let bad = DialogConfig {
+            low: 0.8,
+            high: 0.5,
+            ..DialogConfig::default()
+        };
+        assert!(matches!(
+            Dialog::new(bad),
+            Err(ConfigError::Thresholds { .. })
+        ));
+        let bad = DialogConfig {
+            answer_timeout_s: 0.0,
+            ..DialogConfig::default()
+        };
+        assert!(Dialog::new(bad).is_err());
+        let c: DialogConfig = toml::from_str("high = 0.8\nlow = 0.2\n").unwrap();
+        assert_eq!((c.high, c.low, c.answer_timeout_s), (0.8, 0.2, 8.0));
+        assert!(toml::from_str::<DialogConfig>("hgh = 0.8").is_err());
+    }
+}

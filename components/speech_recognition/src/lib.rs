@@ -1,0 +1,17 @@
+//! # speech_recognition: grammar-constrained recognition with a confidence score
+//!
+//! Audio is a continuous 16 000 Hz mono signed 16-bit stream. The end-pointer ([`vad`]) cuts
+//! utterances out of it; each is decoded by PocketSphinx (the Debian `pocketsphinx-en-us` model)
+//! constrained by the game's JSGF grammar ([`grammar`], files in `grammars/`), and by a phone loop
+//! that serves as garbage model for the confidence ([`confidence`]). The transcription is mapped
+//! to a command of the catalog (`interfaces::msg::command`) or marked out of grammar.
+//!
+//! The component (`src/main.rs`) reads `audio/in` (or `--wav FILE`) and publishes
+//! `speech/utterance`.
+
+pub mod confidence;
+pub mod grammar;
+pub mod recognizer;
+pub mod vad;
+
+pub use recognizer::{Recognized, Recognizer, RecognizerConfig, RecognizerError};

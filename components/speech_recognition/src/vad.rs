@@ -1,0 +1,356 @@
+//! Voice activity detection and end-pointing: cuts utterances out of a continuous 16 kHz mono
+//! stream.
+//!
+//! The stream is cut into 10 ms frames (160 samples). A frame's level is its power in dB relative
+//! to full scale (dBFS), smoothed over the last three frames. A background level (noise floor)
+//! follows the quietest recent frames: it falls at once to a quieter frame and rises by
+//! `floor_rise_db_per_s` otherwise (slower during speech). A frame is *loud* when its level is at
+//! least `start_db` above the floor and above `min_level_dbfs`.
+//!
+//! - An utterance **starts** after `start_frames` consecutive loud frames; it begins `preroll_s`
+//!   before the first of them (soft onsets are kept).
+//! - It **ends** when no frame has been loud (with `start_db - hysteresis_db`) for `hangover_s`;
+//!   `tail_s` of the quiet after the last loud frame is kept.
+//! - It is **cut** at `max_utterance_s` (marked `forced`), and dropped if the loud part lasted
+//!   less than `min_speech_s` (a click, a cough).
+//!
+//! Times are sample indices on the stream (from 0), so the caller turns them into seconds.
+
+use std::collections::VecDeque;
+
+/// Samples per second the detector expects.
+pub const RATE_HZ: u32 = 16_000;
+/// Samples per frame (10 ms).
+pub const FRAME: usize = 160;
+
+/// End-pointing thresholds (see the module doc).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VadConfig {
+    pub start_db: f64,
+    pub hysteresis_db: f64,
+    pub min_level_dbfs: f64,
+    pub start_frames: usize,
+    pub preroll_s: f64,
+    pub hangover_s: f64,
+    pub tail_s: f64,
+    pub min_speech_s: f64,
+    pub max_utterance_s: f64,
+    pub floor_rise_db_per_s: f64,
+}
+
+impl Default for VadConfig {
+    fn default() -> Self {
+        Self {
+            start_db: 6.0,
+            hysteresis_db: 2.0,
+            min_level_dbfs: -65.0,
+            start_frames: 4,
+            preroll_s: 0.25,
+            hangover_s: 0.45,
+            tail_s: 0.2,
+            min_speech_s: 0.12,
+            max_utterance_s: 8.0,
+            floor_rise_db_per_s: 2.0,
+        }
+    }
+}
+
+/// One utterance cut from the stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segment {
+    /// First and one-past-last sample on the stream.
+    pub start_sample: u64,
+    pub end_sample: u64,
+    pub samples: Vec<i16>,
+    /// Cut at `max_utterance_s` rather than ended by silence.
+    pub forced: bool,
+}
+
+impl Segment {
+    pub fn start_s(&self) -> f64 {
+        self.start_sample as f64 / RATE_HZ as f64
+    }
+    pub fn end_s(&self) -> f64 {
+        self.end_sample as f64 / RATE_HZ as f64
+    }
+}
+
+#[derive(Debug)]
+struct Open {
+    start_sample: u64,
+    samples: Vec<i16>,
+    /// Samples in `samples` up to the end of the last loud frame.
+    last_loud_len: usize,
+    loud_frames: usize,
+    quiet_frames: usize,
+}
+
+/// The end-pointer; feed it any chunk sizes.
+#[derive(Debug)]
+pub struct Vad {
+    cfg: VadConfig,
+    pending: Vec<i16>,
+    /// Recent frames kept for the pre-roll, oldest first.
+    history: VecDeque<Vec<i16>>,
+    levels: VecDeque<f64>,
+    floor_db: Option<f64>,
+    loud_run: usize,
+    open: Option<Open>,
+    /// Stream position of the first sample of `pending`.
+    pos: u64,
+    /// Utterances dropped as too short.
+    pub dropped_short: u64,
+}
+
+/// Power of a frame in dBFS (−100 for digital silence).
+pub fn level_dbfs(frame: &[i16]) -> f64 {
+    if frame.is_empty() {
+        return -100.0;
+    }
+    let p = frame
+        .iter()
+        .map(|&s| {
+            let x = s as f64 / 32768.0;
+            x * x
+        })
+        .sum::<f64>()
+        / frame.len() as f64;
+    (10.0 * p.max(1e-10).log10()).max(-100.0)
+}
+
+impl Vad {
+    pub fn new(cfg: VadConfig) -> Self {
+        Self {
+            cfg,
+            pending: Vec::new(),
+            history: VecDeque::new(),
+            levels: VecDeque::new(),
+            floor_db: None,
+            loud_run: 0,
+            open: None,
+            pos: 0,
+            dropped_short: 0,
+        }
+    }
+
+    /// Whether an utterance is under way.
+    pub fn in_speech(&self) -> bool {
+        self.open.is_some()
+    }
+
+    /// The current noise floor estimate (dBFS).
+    pub fn floor_dbfs(&self) -> Option<f64> {
+        self.floor_db
+    }
+
+    fn frames(s: f64) -> usize {
+        (s * RATE_HZ as f64 / FRAME as f64).round() as usize
+    }
+
+    /// Feed samples; returns the utterances that ended in them.
+    pub fn push(&mut self, samples: &[i16]) -> Vec<Segment> {
+        self.pending.extend_from_slice(samples);
+        let mut out = Vec::new();
+        let n = self.pending.len() / FRAME;
+        let frames: Vec<Vec<i16>> = self.pending[..n * FRAME]
+            .chunks_exact(FRAME)
+            .map(<[i16]>::to_vec)
+            .collect();
+        self.pending.drain(..n * FRAME);
+        for f in frames {
+            if let Some(s) = self.frame(f) {
+                out.push(s);
+            }
+            self.pos += FRAME as u64;
+        }
+        out
+    }
+
+    /// End of stream: close an open utterance (with what was heard so far).
+    pub fn flush(&mut self) -> Option<Segment> {
+        let open = self.open.take()?;
+        self.close(open, false)
+    }
+
+    fn close(&mut self, mut open: Open, forced: bool) -> Option<Segment> {
+        self.loud_run = 0;
+        if (open.loud_frames as f64) * (FRAME as f64) / (RATE_HZ as f64) < self.cfg.min_speech_s {
+            self.dropped_short += 1;
+            return None;
+        }
+        if !forced {
+            let keep = (open.last_loud_len + Self::frames(self.cfg.tail_s) * FRAME)
+                .min(open.samples.len());
+            open.samples.truncate(keep);
+        }
+        Some(Segment {
+            start_sample: open.start_sample,
+            end_sample: open.start_sample + open.samples.len() as u64,
+            samples: open.samples,
+            forced,
+        })
+    }
+
+    fn frame(&mut self, f: Vec<i16>) -> Option<Segment> {
+        let raw = level_dbfs(&f);
+        self.levels.push_back(raw);
+        if self.levels.len() > 3 {
+            self.levels.pop_front();
+        }
+        // Smooth in the power domain.
+        let level = 10.0
+            * (self
+                .levels
+                .iter()
+                .map(|l| 10f64.powf(l / 10.0))
+                .sum::<f64>()
+                / self.levels.len() as f64)
+                .log10();
+        let floor = *self.floor_db.get_or_insert(raw);
+        let rise = self.cfg.floor_rise_db_per_s * FRAME as f64 / RATE_HZ as f64;
+        let new_floor = if raw < floor {
+            raw
+        } else if self.open.is_some() {
+            floor + rise * 0.25
+        } else {
+            floor + rise
+        };
+        self.floor_db = Some(new_floor);
+        let above = level - floor;
+        let loud = level > self.cfg.min_level_dbfs && above >= self.cfg.start_db;
+        let still_loud =
+            level > self.cfg.min_level_dbfs && above >= self.cfg.start_db - self.cfg.hysteresis_db;
+
+        let preroll = Self::frames(self.cfg.preroll_s).max(self.cfg.start_frames);
+        match self.open.as_mut() {
+            None => {
+                self.loud_run = if loud { self.loud_run + 1 } else { 0 };
+                self.history.push_back(f);
+                while self.history.len() > preroll {
+                    self.history.pop_front();
+                }
+                if self.loud_run >= self.cfg.start_frames {
+                    let frames: Vec<Vec<i16>> = self.history.drain(..).collect();
+                    let start_sample = self.pos + FRAME as u64 - (frames.len() * FRAME) as u64;
+                    let samples: Vec<i16> = frames.concat();
+                    self.open = Some(Open {
+                        start_sample,
+                        last_loud_len: samples.len(),
+                        samples,
+                        loud_frames: self.loud_run,
+                        quiet_frames: 0,
+                    });
+                }
+                None
+            }
+            Some(open) => {
+                open.samples.extend_from_slice(&f);
+                if still_loud {
+                    open.loud_frames += 1;
+                    open.quiet_frames = 0;
+                    open.last_loud_len = open.samples.len();
+                } else {
+                    open.quiet_frames += 1;
+                }
+                let too_long =
+                    open.samples.len() as f64 / RATE_HZ as f64 >= self.cfg.max_utterance_s;
+                let ended = open.quiet_frames >= Self::frames(self.cfg.hangover_s);
+                if too_long || ended {
+                    let open = self.open.take()?;
+                    return self.close(open, too_long && !ended);
+                }
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speech_generator::audio::{NoiseKind, NoiseRng, noise};
+
+    /// A burst of a 300 Hz tone with 3 harmonics, amplitude `amp`, lasting `secs`.
+    fn burst(secs: f64, amp: f64) -> Vec<i16> {
+        (0..(secs * 16000.0) as usize)
+            .map(|i| {
+                let t = i as f64 / 16000.0;
+                let s: f64 = (1..=3)
+                    .map(|k| (2.0 * std::f64::consts::PI * 300.0 * k as f64 * t).sin() / k as f64)
+                    .sum();
+                (amp * s) as i16
+            })
+            .collect()
+    }
+
+    fn with_noise(mut signal: Vec<i16>, power: f64, seed: u64) -> Vec<i16> {
+        let n = noise(
+            signal.len(),
+            NoiseKind::White,
+            power,
+            &mut NoiseRng::new(seed),
+        );
+        for (s, x) in signal.iter_mut().zip(n) {
+            *s = (*s as f64 + x).round().clamp(-32768.0, 32767.0) as i16;
+        }
+        signal
+    }
+
+    #[test]
+    fn cuts_two_utterances_from_noise_with_their_times() {
+        let mut stream = vec![0i16; 16000]; // 1 s quiet
+        stream.extend(burst(0.8, 6000.0)); // 1.0 .. 1.8 s
+        stream.extend(vec![0i16; 16000]); // 1 s quiet
+        stream.extend(burst(0.5, 6000.0)); // 2.8 .. 3.3 s
+        stream.extend(vec![0i16; 16000]);
+        let stream = with_noise(stream, 1e-5, 1); // -50 dBFS noise
+        let mut vad = Vad::new(VadConfig::default());
+        let mut segs = vec![];
+        // Odd chunk sizes on purpose.
+        for c in stream.chunks(777) {
+            segs.extend(vad.push(c));
+        }
+        assert!(vad.flush().is_none());
+        assert_eq!(segs.len(), 2, "{segs:?}");
+        let (a, b) = (&segs[0], &segs[1]);
+        assert!(a.start_s() > 0.7 && a.start_s() < 1.0, "{}", a.start_s());
+        assert!(a.end_s() > 1.8 && a.end_s() < 2.1, "{}", a.end_s());
+        assert!(b.start_s() > 2.5 && b.start_s() < 2.8 && b.end_s() > 3.3 && b.end_s() < 3.6);
+        assert_eq!(a.samples.len() as u64, a.end_sample - a.start_sample);
+        assert!(!a.forced);
+        // The floor tracks the noise (-50 dBFS).
+        let floor = vad.floor_dbfs().unwrap();
+        assert!((floor + 50.0).abs() < 3.0, "{floor}");
+    }
+
+    #[test]
+    fn clicks_are_dropped_long_speech_is_cut_and_silence_is_nothing() {
+        let mut vad = Vad::new(VadConfig::default());
+        let mut stream = vec![0i16; 8000];
+        stream.extend(burst(0.05, 8000.0));
+        stream.extend(vec![0i16; 16000]);
+        assert!(vad.push(&stream).is_empty());
+        assert_eq!(vad.dropped_short, 1);
+
+        let mut vad = Vad::new(VadConfig {
+            max_utterance_s: 2.0,
+            ..VadConfig::default()
+        });
+        let mut stream = vec![0i16; 8000];
+        stream.extend(burst(5.0, 6000.0));
+        let segs = vad.push(&stream);
+        assert!(!segs.is_empty() && segs[0].forced, "{segs:?}");
+        assert!((segs[0].end_s() - segs[0].start_s() - 2.0).abs() < 0.02);
+
+        let mut vad = Vad::new(VadConfig::default());
+        assert!(vad.push(&vec![0i16; 48000]).is_empty());
+        assert!(vad.push(&[]).is_empty());
+        assert!(!vad.in_speech());
+        // Speech at the very end of a stream comes out on flush.
+        let mut s = vec![0i16; 8000];
+        s.extend(burst(0.6, 6000.0));
+        assert!(vad.push(&s).is_empty());
+        assert!(vad.in_speech());
+        assert!(vad.flush().is_some());
+    }
+}

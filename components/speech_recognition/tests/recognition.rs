@@ -1,0 +1,206 @@
+#![allow(clippy::unwrap_used)]
+//! Recognition of real (synthesized) speech: every command of both games, several voices,
+//! speeds, pitches and noise levels; out-of-grammar speech; bad input.
+
+mod common;
+
+use common::*;
+use interfaces::msg::command::{Command, Game};
+use speech_generator::audio::gain_clipped;
+use speech_recognition::grammar::{Grammar, grammar_dir};
+use speech_recognition::{Recognizer, RecognizerConfig, RecognizerError};
+use std::collections::HashSet;
+
+fn recognizer(game: Game) -> Recognizer {
+    Recognizer::shipped(game, RecognizerConfig::default()).unwrap()
+}
+
+#[test]
+fn grammars_match_the_command_catalog() {
+    let dict: HashSet<String> =
+        std::fs::read_to_string("/usr/share/pocketsphinx/model/en-us/cmudict-en-us.dict")
+            .unwrap()
+            .lines()
+            .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+            .collect();
+    for game in Game::ALL {
+        let g = Grammar::load(&grammar_dir().join(format!("{}.gram", game.name()))).unwrap();
+        assert_eq!(g.name, game.name());
+        let sentences = g.sentences().unwrap();
+        // Every sentence of the grammar is a command of this game...
+        for s in &sentences {
+            let c = Command::from_phrase(game, s);
+            assert_ne!(c, Command::None, "{game:?}: {s:?} maps to no command");
+        }
+        // ...and every phrase of every command of the game is in the grammar.
+        for c in Command::of_game(game) {
+            for p in c.phrases() {
+                assert!(
+                    sentences.contains(&p.to_string()),
+                    "{game:?}: {c:?} phrase {p:?} missing"
+                );
+            }
+        }
+        for w in g.words().unwrap() {
+            assert!(
+                dict.contains(&w),
+                "{w:?} is not in the pronunciation dictionary"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_broken_grammar_file_is_a_clear_error_naming_it() {
+    let dir = std::env::temp_dir().join(format!("sr-gram-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("broken.gram");
+    std::fs::write(
+        &p,
+        "#JSGF V1.0;\ngrammar broken;\npublic <a> = touch the ( ball;\n",
+    )
+    .unwrap();
+    let e = Recognizer::new(Game::Touch, &p, RecognizerConfig::default()).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, RecognizerError::Grammar(_)));
+    assert!(
+        msg.contains("broken.gram") && msg.contains("line 3"),
+        "{msg}"
+    );
+    // A grammar our checker accepts but with a word PocketSphinx does not know fails in the
+    // decoder, still naming the file.
+    std::fs::write(
+        &p,
+        "#JSGF V1.0;\ngrammar broken;\npublic <a> = touch the zzyzxqw;\n",
+    )
+    .unwrap();
+    let e = Recognizer::new(Game::Touch, &p, RecognizerConfig::default()).unwrap_err();
+    assert!(e.to_string().contains("broken.gram"), "{e}");
+}
+
+/// Every command of `game`, said by each of `voices` at `snr_db`, through the end-pointer.
+fn accuracy(
+    game: Game,
+    voices: &[speech_generator::synth::Voice],
+    snr_db: f64,
+) -> (usize, usize, Vec<String>) {
+    let mut rec = recognizer(game);
+    let (mut ok, mut n, mut errors) = (0, 0, vec![]);
+    for (vi, v) in voices.iter().enumerate() {
+        for c in Command::of_game(game) {
+            let audio = spoken(c.phrase(), v, snr_db, 1 + vi as u64);
+            let mut got = rec.push(&audio).unwrap();
+            got.extend(rec.flush().unwrap());
+            n += 1;
+            if got.len() == 1 && got[0].command == c {
+                ok += 1;
+            } else {
+                errors.push(format!(
+                    "{} {}wpm p{}: {:?} -> {:?}",
+                    v.voice,
+                    v.speed_wpm,
+                    v.pitch,
+                    c.phrase(),
+                    got.iter()
+                        .map(|r| (r.text.clone(), (r.confidence * 100.0).round()))
+                        .collect::<Vec<_>>()
+                ));
+            }
+        }
+    }
+    (ok, n, errors)
+}
+
+#[test]
+fn clean_commands_of_both_games_are_recognized() {
+    for game in Game::ALL {
+        let (ok, n, errors) = accuracy(game, &voices()[..1], f64::INFINITY);
+        eprintln!("{game:?} clean: {ok}/{n} {errors:#?}");
+        assert!(
+            ok as f64 >= 0.9 * n as f64,
+            "{game:?}: {ok}/{n}: {errors:#?}"
+        );
+    }
+}
+
+#[test]
+fn voices_speeds_pitches_and_noise() {
+    for (snr, min_acc) in [(20.0, 0.85), (10.0, 0.75)] {
+        let (ok, n, errors) = accuracy(Game::Touch, &voices(), snr);
+        let acc = ok as f64 / n as f64;
+        eprintln!("touch, 5 voices, SNR {snr} dB: {ok}/{n} = {acc:.2}\n{errors:#?}");
+        assert!(acc >= min_acc, "SNR {snr}: {ok}/{n}: {errors:#?}");
+    }
+}
+
+#[test]
+#[ignore = "known gap: the confidence does not yet separate out-of-grammar speech (see the crate doc)"]
+fn in_grammar_speech_scores_higher_than_out_of_grammar_speech() {
+    let mut rec = recognizer(Game::Touch);
+    let v = voice("en-us", 160, 50);
+    let mut inside = vec![];
+    for c in Command::of_game(Game::Touch) {
+        let r = rec.decode_all(&spoken(c.phrase(), &v, 20.0, 3)).unwrap();
+        if r.command == c {
+            inside.push(r.confidence);
+        }
+    }
+    let mut outside = vec![];
+    for s in [
+        "what a lovely day it is today",
+        "the weather is cold in the mountains",
+        "can you bring me a cup of coffee",
+        "seven hundred and twenty three",
+        "my brother lives in barcelona",
+        "turn off the lights in the kitchen",
+    ] {
+        let r = rec.decode_all(&spoken(s, &v, 20.0, 4)).unwrap();
+        eprintln!(
+            "OOG {s:?} -> {:?} conf {:.3} post {:.3} garbage/frame {:.3}",
+            r.text, r.confidence, r.posterior_ln, r.garbage_per_frame_ln
+        );
+        outside.push(r.confidence);
+    }
+    inside.sort_by(f64::total_cmp);
+    eprintln!("in-grammar confidences {inside:?}");
+    let median_in = inside[inside.len() / 2];
+    let low = dialogs_low();
+    // Out of grammar: below the dialog's low threshold, so never a command.
+    let rejected = outside.iter().filter(|c| **c < low).count();
+    assert!(rejected * 6 >= outside.len() * 5, "{outside:?}");
+    assert!(median_in >= 0.7, "{inside:?}");
+}
+
+/// The dialog's default low threshold (kept in step with dialogs::DialogConfig).
+fn dialogs_low() -> f64 {
+    0.3
+}
+
+#[test]
+fn bad_input_is_handled() {
+    let mut rec = recognizer(Game::Touch);
+    // Nothing, and silence: no utterance.
+    assert!(rec.push(&[]).unwrap().is_empty());
+    assert!(rec.push(&vec![0; 32000]).unwrap().is_empty());
+    assert!(rec.flush().unwrap().is_none());
+    let r = rec.decode_all(&[]).unwrap();
+    assert_eq!(
+        (r.text.as_str(), r.confidence, r.command),
+        ("", 0.0, Command::None)
+    );
+    // Heavily clipped speech (gain 20, most samples at full scale) does not crash; whatever
+    // comes out has a confidence in [0, 1].
+    let v = voice("en-us", 160, 50);
+    let clipped = gain_clipped(&spoken("touch the ball", &v, 30.0, 5), 20.0);
+    let mut got = rec.push(&clipped).unwrap();
+    got.extend(rec.flush().unwrap());
+    for r in &got {
+        assert!((0.0..=1.0).contains(&r.confidence));
+    }
+    // Audio at the wrong rate (22 050 Hz fed as 16 kHz) is slowed and pitched down: it is not
+    // turned into a confident command.
+    let raw = speech_generator::synth::synthesize("touch the ball", &v).unwrap();
+    let r = rec.decode_all(&raw.samples).unwrap();
+    eprintln!("wrong rate -> {:?} {:.2}", r.text, r.confidence);
+    assert!((0.0..=1.0).contains(&r.confidence));
+}
