@@ -63,7 +63,11 @@ impl<T: interfaces::Message> TypedPair<T> {
                 }
             }
         });
-        Ok(Self { publisher: a.publisher(out).await?, back: a.subscriber(back).await?, echo })
+        Ok(Self {
+            publisher: a.publisher(out).await?,
+            back: a.subscriber(back).await?,
+            echo,
+        })
     }
 
     /// One-way latency (µs) of one round trip of `msg`.
@@ -113,7 +117,10 @@ impl RawPair {
 
     async fn once(&self, payload: &[u8]) -> anyhow::Result<f64> {
         let t = Instant::now();
-        self.publisher.put(payload.to_vec()).await.map_err(|e| anyhow::anyhow!("{e}"))?;
+        self.publisher
+            .put(payload.to_vec())
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
         let s = tokio::time::timeout(Duration::from_secs(5), self.back.recv_async())
             .await
             .map_err(|_| anyhow::anyhow!("raw ping lost"))?
@@ -251,9 +258,19 @@ async fn main() -> anyhow::Result<()> {
     let mut json = serde_json::Map::new();
     for (label, size, n) in cases {
         eprintln!("latency {label} ({n} round trips each)...");
-        let ping = Ping { data: vec![0xab; size], ..Default::default() };
-        let (t, r) =
-            latency_pair(&a, &b, (&topics::BENCH_PING, &topics::BENCH_PONG), ping, size, n).await?;
+        let ping = Ping {
+            data: vec![0xab; size],
+            ..Default::default()
+        };
+        let (t, r) = latency_pair(
+            &a,
+            &b,
+            (&topics::BENCH_PING, &topics::BENCH_PONG),
+            ping,
+            size,
+            n,
+        )
+        .await?;
         json.insert(format!("typed_{label}_p50_us"), t.p50_us.into());
         json.insert(format!("typed_{label}_p99_us"), t.p99_us.into());
         json.insert(format!("raw_{label}_p50_us"), r.p50_us.into());
@@ -266,8 +283,16 @@ async fn main() -> anyhow::Result<()> {
     }
     let n_frames = 300 / scale;
     eprintln!("latency RGB-D frame ({n_frames} round trips each)...");
-    let mut frame =
-        RgbdFrame::blank(640, 480, Intrinsics { fx: 525.0, fy: 525.0, cx: 319.5, cy: 239.5 });
+    let mut frame = RgbdFrame::blank(
+        640,
+        480,
+        Intrinsics {
+            fx: 525.0,
+            fy: 525.0,
+            cx: 319.5,
+            cy: 239.5,
+        },
+    );
     frame.header.frame_id = "head_rgbd_optical_frame".into();
     let raw_size = interfaces::codec::encoded_len(&frame);
     let (t, r) = latency_pair(
