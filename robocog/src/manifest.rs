@@ -201,12 +201,14 @@ pub struct Manifest {
     pub file: PathBuf,
 }
 
-/// Options that change a manifest from the command line.
-#[derive(Debug, Clone, Default)]
+/// Options that change a manifest from the command line (shared by `check` and `launch`).
+#[derive(Debug, Clone, Default, clap::Args)]
 pub struct Overrides {
-    /// `--profile NAME`.
+    /// Use this profile's variables (e.g. `real` instead of the simulated drivers).
+    #[arg(long)]
     pub profile: Option<String>,
-    /// `--set key=value`, applied last.
+    /// Override a variable: --set robot=real (repeatable); applied last.
+    #[arg(long = "set", value_parser = parse_set)]
     pub set: Vec<(String, String)>,
 }
 

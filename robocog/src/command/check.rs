@@ -7,21 +7,13 @@ use std::path::PathBuf;
 pub struct Args {
     /// The launch manifest (TOML).
     pub manifest: PathBuf,
-    /// Use this profile's variables (e.g. `real` instead of the simulated drivers).
-    #[arg(long)]
-    pub profile: Option<String>,
-    /// Override a variable: --set robot=real (repeatable).
-    #[arg(long = "set", value_parser = crate::manifest::parse_set)]
-    pub set: Vec<(String, String)>,
+    #[command(flatten)]
+    pub overrides: Overrides,
 }
 
 /// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
 pub fn execute(args: Args) -> i32 {
-    let overrides = Overrides {
-        profile: args.profile,
-        set: args.set,
-    };
-    let manifest = match Manifest::load(&args.manifest, &overrides) {
+    let manifest = match Manifest::load(&args.manifest, &args.overrides) {
         Ok(m) => m,
         Err(problems) => {
             eprintln!("{problems}");

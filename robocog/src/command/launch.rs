@@ -16,23 +16,15 @@ pub struct Args {
     /// (default: the manifest's, else tcp/127.0.0.1:7447).
     #[arg(long)]
     pub router: Option<String>,
-    /// Use this profile's variables (e.g. `real` instead of the simulated drivers).
-    #[arg(long)]
-    pub profile: Option<String>,
-    /// Override a variable: --set robot=real (repeatable).
-    #[arg(long = "set", value_parser = crate::manifest::parse_set)]
-    pub set: Vec<(String, String)>,
+    #[command(flatten)]
+    pub overrides: Overrides,
     /// Colour the component prefixes: auto, always, never.
     #[arg(long, default_value = "auto")]
     pub color: String,
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let overrides = Overrides {
-        profile: args.profile,
-        set: args.set,
-    };
-    let manifest = match Manifest::load(&args.manifest, &overrides) {
+    let manifest = match Manifest::load(&args.manifest, &args.overrides) {
         Ok(m) => m,
         Err(problems) => {
             eprintln!("{problems}");
