@@ -59,7 +59,11 @@ async fn main() -> anyhow::Result<()> {
 
     let (_router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
     let ns = format!("bench-dr-{}", std::process::id());
-    let connect = ConnectArgs::to_router(&endpoint, &ns);
+    let mut connect = ConnectArgs::to_router(&endpoint, &ns);
+    // ROBOCOG_MODE is the shared flags' environment variable for --mode.
+    if std::env::var("ROBOCOG_MODE").as_deref() == Ok("peer") {
+        connect.mode = interfaces::args::Mode::Peer;
+    }
     let options = BusOptions {
         announce: true,
         ..BusOptions::default()
