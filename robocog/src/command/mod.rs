@@ -1,5 +1,14 @@
 //! One file per verb of the `robocog` command line.
 
+/// Print a line; when stdout is gone (`| head`), stop quietly with success, as Unix tools do.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        if writeln!(std::io::stdout().lock(), $($arg)*).is_err() {
+            return Ok(0);
+        }
+    };
+}
+
 pub mod check;
 pub mod component;
 pub mod launch;

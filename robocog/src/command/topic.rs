@@ -11,15 +11,6 @@ use std::time::{Duration, Instant};
 
 use std::io::Write;
 
-/// Print a line; when stdout is gone (`| head`), stop quietly with success, as Unix tools do.
-macro_rules! out {
-    ($($arg:tt)*) => {
-        if writeln!(std::io::stdout().lock(), $($arg)*).is_err() {
-            return Ok(0);
-        }
-    };
-}
-
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
