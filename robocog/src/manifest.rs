@@ -29,6 +29,8 @@
 //! hardware = ["serial:/dev/ttyUSB0"] # ports it claims; two claims of one port are an error
 //! completes_graph = false            # true: when it exits 0, the graph is done (the launcher exits 0)
 //! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user)
+//! enabled = "${simulate}"            # "true" (default) or "false" after substitution: a profile
+//!                                    # can switch a simulator off when real hardware is used
 //! ```
 //!
 //! Unknown keys are errors. Every error names the file and line.
@@ -164,6 +166,7 @@ struct RawComponent {
     completes_graph: bool,
     #[serde(default)]
     external_inputs: Vec<String>,
+    enabled: Option<Spanned<String>>,
 }
 
 /// One component of a resolved graph.
@@ -366,6 +369,7 @@ impl Manifest {
             .flat_map(|l| l.raw.component.iter().map(|c| c.name.get_ref().as_str()))
             .collect();
         let mut components: Vec<Component> = Vec::new();
+        let mut disabled: Vec<(String, Origin)> = Vec::new();
         let mut first_seen: HashMap<String, Origin> = HashMap::new();
         for l in &loaded {
             let origin_of = |span: std::ops::Range<usize>| Origin {
@@ -386,6 +390,32 @@ impl Manifest {
                     }
                 };
                 let cname = rc.name.get_ref().clone();
+                if let Some(enabled) = &rc.enabled {
+                    match substitute(enabled.get_ref(), &vars).as_deref() {
+                        Ok("true") => {}
+                        Ok("false") => {
+                            disabled.push((cname, origin.clone()));
+                            continue;
+                        }
+                        Ok(other) => {
+                            problems.push(Problem {
+                                origin: origin_of(enabled.span()),
+                                message: format!(
+                                    "enabled must be \"true\" or \"false\", got {other:?}"
+                                ),
+                            });
+                            continue;
+                        }
+                        Err(message) => {
+                            let message = message.clone();
+                            problems.push(Problem {
+                                origin: origin_of(enabled.span()),
+                                message,
+                            });
+                            continue;
+                        }
+                    }
+                }
                 if !interfaces::topic::is_valid_segment(&cname) {
                     problems.push(Problem {
                         origin: origin.clone(),
@@ -454,6 +484,19 @@ impl Manifest {
                             ),
                         });
                     }
+                }
+            }
+        }
+        for c in &components {
+            for d in &c.depends_on {
+                if let Some((_, at)) = disabled.iter().find(|(n, _)| n == d) {
+                    problems.push(Problem {
+                        origin: c.origin.clone(),
+                        message: format!(
+                            "component {:?} depends on {d:?}, which is disabled ({at})",
+                            c.name
+                        ),
+                    });
                 }
             }
         }

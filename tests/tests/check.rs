@@ -246,3 +246,76 @@ fn errors_in_an_included_file_name_that_file() {
     assert_eq!(out.status.code(), Some(1));
     assert!(err.contains(&format!("{}:4: ", inc.display())), "{err}");
 }
+
+#[test]
+fn a_profile_can_disable_a_simulator_and_a_dependency_on_it_is_an_error() {
+    let ns = unique_namespace("enabled");
+    let dir = scratch(&ns);
+    let m = write_manifest(
+        &dir,
+        "graph.toml",
+        r#"
+[vars]
+simulate = "true"
+
+[profiles.real]
+simulate = "false"
+
+[[component]]
+name = "sim"
+binary = "@FIXTURE@"
+args = ["--role", "talker"]
+enabled = "${simulate}"
+
+[[component]]
+name = "user"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+"#,
+    );
+    let t = Duration::from_secs(30);
+    let robocog = bin("robocog");
+    let m = m.display().to_string();
+    let out = run(&robocog, &["check".into(), m.clone()], t);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("2 components"));
+    let out = run(
+        &robocog,
+        &["check".into(), m.clone(), "--profile".into(), "real".into()],
+        t,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1 components"));
+    let out = run(
+        &robocog,
+        &["check".into(), m, "--set".into(), "simulate=maybe".into()],
+        t,
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("enabled must be \"true\" or \"false\""));
+
+    assert_rejected(
+        r#"[[component]]
+name = "sim"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+enabled = "false"
+
+[[component]]
+name = "user"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+depends_on = ["sim"]
+"#,
+        8,
+        "depends on \"sim\", which is disabled",
+    );
+}
