@@ -802,7 +802,8 @@ impl SceneGraph {
         }
     }
 
-    fn remove_node(&mut self, name: &str, stamp: Stamp) -> std::result::Result<(), RejectReason> {
+    /// The node `name`, when it exists and may be changed structurally.
+    fn unprotected_node(&self, name: &str) -> std::result::Result<(NodeId, &Node), RejectReason> {
         let id = *self
             .names
             .get(name)
@@ -810,9 +811,14 @@ impl SceneGraph {
         let n = self
             .node_by_id(id)
             .ok_or_else(|| RejectReason::UnknownNode(name.to_string()))?;
-        if let Some(why) = Self::protected(n) {
-            return Err(RejectReason::Protected(name.to_string(), why));
+        match Self::protected(n) {
+            Some(why) => Err(RejectReason::Protected(name.to_string(), why)),
+            None => Ok((id, n)),
         }
+    }
+
+    fn remove_node(&mut self, name: &str, stamp: Stamp) -> std::result::Result<(), RejectReason> {
+        let (id, n) = self.unprotected_node(name)?;
         if !n.children.is_empty() {
             let kids: Vec<&str> = n
                 .children
@@ -847,20 +853,11 @@ impl SceneGraph {
         pose: &Pose,
         stamp: Stamp,
     ) -> std::result::Result<(), RejectReason> {
-        let id = *self
-            .names
-            .get(name)
-            .ok_or_else(|| RejectReason::UnknownNode(name.to_string()))?;
+        let (id, n) = self.unprotected_node(name)?;
         let np = *self
             .names
             .get(new_parent)
             .ok_or_else(|| RejectReason::UnknownParent(new_parent.to_string()))?;
-        let n = self
-            .node_by_id(id)
-            .ok_or_else(|| RejectReason::UnknownNode(name.to_string()))?;
-        if let Some(why) = Self::protected(n) {
-            return Err(RejectReason::Protected(name.to_string(), why));
-        }
         if matches!(n.edge.kind, EdgeKind::Joint { .. }) {
             return Err(RejectReason::Protected(name.to_string(), "a joint child"));
         }
