@@ -93,3 +93,28 @@ pub const VISION_BALL_EVENTS: Topic<crate::msg::tracking::BallEvent> =
     Topic::new("vision/ball_events");
 /// Ground truth of the simulated ball (the `rgbd` sim driver), one per simulated frame.
 pub const SIM_BALL_TRUTH: Topic<crate::msg::tracking::BallTruth> = Topic::new("sim/ball_truth");
+/// The simulated world's ball (the simulated person holds, moves and puts it away).
+pub const SIM_BALL: Topic<crate::msg::tracking::SimBall> = Topic::new("sim/ball");
+
+// body
+/// Every joint's measured state, 100 Hz or more (`joint_motor`).
+pub const BODY_JOINT_STATES: Topic<crate::msg::body::JointStates> = Topic::new("body/joint_states");
+/// A joint goal (or release), accepted or refused with the joint and limit named.
+pub const BODY_JOINT_GOAL: Service<crate::msg::body::JointGoal, crate::msg::body::JointGoalReply> =
+    Service::new("body/joint_goal");
+/// Reach and gaze goals for `body_inverse_kinematics` (replace per body part; cancel).
+pub const BODY_REACH: Topic<crate::msg::body::ReachGoal> = Topic::new("body/reach");
+/// Moving / reached / unreachable / cancelled / failed, per reach goal.
+pub const BODY_REACH_STATUS: Topic<crate::msg::body::ReachStatus> = Topic::new("body/reach_status");
+
+// executive
+/// Every step of the Executive's machines.
+pub const EXECUTIVE_TRANSITIONS: Topic<crate::msg::executive::StateTransition> =
+    Topic::new("executive/transitions");
+/// The current configuration of a machine (and its diagram).
+pub const EXECUTIVE_CONFIGURATION: Service<
+    crate::msg::executive::ConfigurationRequest,
+    crate::msg::executive::Configuration,
+> = Service::new("executive/configuration");
+/// The readable game log.
+pub const EXECUTIVE_LOG: Topic<crate::msg::executive::GameLog> = Topic::new("executive/log");

@@ -176,6 +176,9 @@ pub fn to_msgs(out: &TrackOutput, frame: &Header) -> (BallTrack, Vec<BallEvent>)
     };
     let state = state_msg(out.state);
     let track = BallTrack {
+        has_centre_world: false,
+        centre_world_m: [0.0; 3],
+        centre_robot_m: [0.0; 3],
         header: header.clone(),
         frame_seq: frame.seq,
         state,

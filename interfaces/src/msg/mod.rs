@@ -10,9 +10,11 @@
 //! Every type is listed once in the `messages!` invocation below, which gives it its type name and
 //! puts it in [`REGISTRY`].
 
+pub mod body;
 pub mod command;
 pub mod diag;
 pub mod dr;
+pub mod executive;
 pub mod nao;
 pub mod speech;
 pub mod std_msgs;
@@ -146,6 +148,16 @@ messages! {
     speech::Utterance => "robocog.speech.Utterance",
     speech::SayRequest => "robocog.speech.SayRequest",
     speech::SpeakingEvent => "robocog.speech.SpeakingEvent",
+    tracking::SimBall => "robocog.sim.Ball",
+    body::JointGoal => "robocog.body.JointGoal",
+    body::JointGoalReply => "robocog.body.JointGoalReply",
+    body::JointStates => "robocog.body.JointStates",
+    body::ReachGoal => "robocog.body.ReachGoal",
+    body::ReachStatus => "robocog.body.ReachStatus",
+    executive::StateTransition => "robocog.executive.StateTransition",
+    executive::ConfigurationRequest => "robocog.executive.ConfigurationRequest",
+    executive::Configuration => "robocog.executive.Configuration",
+    executive::GameLog => "robocog.executive.GameLog",
 }
 
 #[cfg(test)]

@@ -72,6 +72,13 @@ pub struct BallTrack {
     pub diameter_m: f64,
     /// How sure the tracker is that this is the ball, `[0, 1]`; 0 when not found.
     pub confidence: f64,
+    /// Whether `centre_world_m` and `centre_robot_m` are valid (the centre was measured and the
+    /// DR knew the camera's pose at the frame's stamp).
+    pub has_centre_world: bool,
+    /// Ball centre in the DR's `world` frame (z up), m.
+    pub centre_world_m: [f64; 3],
+    /// Ball centre in the robot's base frame (`base_footprint`: x forward, z up), m.
+    pub centre_robot_m: [f64; 3],
 }
 
 /// What happened to the track.
@@ -118,4 +125,26 @@ pub struct BallTruth {
     pub diameter_m: f64,
     /// Whether the whole ball projects inside the image, in front of the camera.
     pub in_view: bool,
+}
+
+/// The simulated world's ball (topic `sim/ball`), published by the simulated person at the
+/// camera's rate or faster: where the person holds or puts the ball. The `rgbd` sim driver
+/// renders it; tests compare the tracker's output with it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SimBall {
+    pub header: Header,
+    /// `false`: the ball is not in the scene (put away).
+    pub present: bool,
+    /// Centre in the world frame (z up), m.
+    pub centre_world_m: [f64; 3],
+    /// Velocity in the world frame, m/s.
+    pub velocity_world_mps: [f64; 3],
+    /// Diameter, m.
+    pub diameter_m: f64,
+    /// HSV hue of its colour, degrees `[0, 360)`.
+    pub hue_deg: f32,
+    /// HSV saturation of its colour, `[0, 1]`.
+    pub saturation: f32,
+    /// Whether the person's hand holds it (the renderer draws the hand and arm).
+    pub held: bool,
 }
