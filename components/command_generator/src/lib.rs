@@ -1,0 +1,1 @@
+//! The command panel: game commands from a web page (CommandGenerator).

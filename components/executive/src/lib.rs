@@ -1,0 +1,1 @@
+//! The Executive: a hierarchical concurrent state machine engine and the games' machines.

@@ -1,0 +1,1 @@
+//! The simulated person and world of the touch-the-ball game.
