@@ -1,0 +1,557 @@
+//! The simulated person on the bus: plays a [`Scenario`] against the running game.
+//!
+//! - **Ball**: publishes the ball on `sim/ball` at `ball_rate_hz` (what the `rgbd` sim renders).
+//! - **Voice**: a continuous 16 kHz stream on `audio/in` in 100 ms chunks, in real time: room noise
+//!   at the scenario's SNR below the voice, with the person's sentences (espeak-ng) mixed in.
+//! - **Senses**: what the robot says (`speech/speaking`), the Executive's steps
+//!   (`executive/transitions`), the arm's reach status (`body/reach_status`), the tracker's events
+//!   (`vision/ball_events`), and the robot's hand and camera poses from the DR (`dr/transform`).
+//!
+//! The person prints a readable log line for everything she does and every expectation met, with
+//! the figures (hand-to-ball distance, gaze angle, time taken). A failed expectation ends the run
+//! with an error naming the step, what was expected and what was seen instead.
+
+use crate::ball::{Ball, BallState, dist};
+use crate::scenario::{BallMove, Expect, Scenario, Step};
+use interfaces::msg::body::ReachState;
+use interfaces::msg::dr::TransformRequest;
+use interfaces::msg::speech::{AudioChunk, SpeakingState};
+use interfaces::msg::tracking::{BallEventKind, SimBall};
+use interfaces::{Bus, CallError, topics};
+use speech_generator::audio::{self as pcm, NoiseKind, NoiseRng};
+use speech_generator::synth::{self, Voice};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+
+/// Audio stream rate (Hz) and chunk length (samples: 100 ms).
+pub const RATE_HZ: u32 = 16_000;
+const CHUNK: usize = 1_600;
+
+/// How the person runs.
+#[derive(Debug, Clone)]
+pub struct PersonConfig {
+    pub scenario: Scenario,
+    /// `sim/ball` rate (Hz).
+    pub ball_rate_hz: f64,
+    /// The robot's hand link in the DR.
+    pub hand_frame: String,
+    /// The robot's head camera optical frame in the DR.
+    pub camera_frame: String,
+    /// Seconds of room noise before the first step (lets the recognizer settle).
+    pub settle_s: f64,
+    /// Seed of the room noise.
+    pub seed: u64,
+}
+
+/// What the person saw, for the expectations.
+#[derive(Debug, Default)]
+struct Seen {
+    said: Vec<(Instant, String)>,
+    entered: Vec<(Instant, String)>,
+    active: Vec<String>,
+    reach: Vec<(Instant, String, ReachState)>,
+    ball_events: Vec<(Instant, BallEventKind)>,
+}
+
+fn reach_name(s: ReachState) -> &'static str {
+    match s {
+        ReachState::Moving => "moving",
+        ReachState::Reached => "reached",
+        ReachState::Unreachable => "unreachable",
+        ReachState::Cancelled => "cancelled",
+        ReachState::Failed => "failed",
+    }
+}
+
+fn ball_event_name(k: BallEventKind) -> &'static str {
+    match k {
+        BallEventKind::Detected => "detected",
+        BallEventKind::OutOfView => "out_of_view",
+        BallEventKind::Lost => "lost",
+        BallEventKind::DetectionTimedOut => "detection_timed_out",
+    }
+}
+
+/// The result of a whole scenario.
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    pub steps: usize,
+    pub duration_s: f64,
+    /// Closest the hand came to the ball's surface while an expectation watched it (m).
+    pub closest_hand_to_ball_m: Option<f64>,
+}
+
+/// A speech job for the audio task: samples to mix in, and who to tell when they are out.
+type SpeechJob = (Vec<i16>, oneshot::Sender<()>);
+
+/// Run the scenario to its end (or to the first failed expectation, or shutdown).
+pub async fn run(
+    bus: Bus,
+    cfg: PersonConfig,
+    mut shutdown: interfaces::node::Shutdown,
+) -> anyhow::Result<Outcome> {
+    let sc = cfg.scenario.clone();
+    let t0 = Instant::now();
+    let now_s = move || t0.elapsed().as_secs_f64();
+    let ball = Arc::new(Mutex::new(Ball::new(
+        sc.ball.start,
+        sc.ball.present,
+        sc.ball.held,
+    )));
+    let seen = Arc::new(Mutex::new(Seen::default()));
+
+    // The ball, at a steady rate.
+    let ball_pub = bus.publisher(&topics::SIM_BALL).await?;
+    {
+        let ball = ball.clone();
+        let spec = sc.ball.clone();
+        let period = Duration::from_secs_f64(1.0 / cfg.ball_rate_hz.max(1.0));
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval(period);
+            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+            loop {
+                tick.tick().await;
+                let s = lock(&ball).at(now_s());
+                let mut msg = SimBall {
+                    present: s.present,
+                    centre_world_m: s.position_m,
+                    velocity_world_mps: s.velocity_mps,
+                    diameter_m: spec.diameter_m,
+                    hue_deg: spec.hue_deg,
+                    saturation: spec.saturation,
+                    held: s.held,
+                    ..SimBall::default()
+                };
+                if let Err(e) = ball_pub.publish(&mut msg).await {
+                    tracing::warn!("cannot publish sim/ball: {e}");
+                }
+            }
+        });
+    }
+
+    // The voice: synthesize a calibration sentence to set the room noise below speech level.
+    let voice = Voice {
+        voice: sc.voice.voice.clone(),
+        speed_wpm: sc.voice.speed_wpm,
+        pitch: sc.voice.pitch,
+    };
+    let calib = {
+        let v = voice.clone();
+        tokio::task::spawn_blocking(move || synth::synthesize_16k("hello there", &v)).await??
+    };
+    let speech_power = pcm::active_power(&calib).max(1e-12);
+    let noise_power = speech_power / 10f64.powf(sc.voice.snr_db / 10.0);
+    let (speech_tx, speech_rx) = mpsc::channel::<SpeechJob>(4);
+    let audio_pub = bus.publisher(&topics::AUDIO_IN).await?;
+    tokio::spawn(audio_stream(audio_pub, speech_rx, noise_power, cfg.seed));
+
+    // The senses.
+    spawn_senses(&bus, seen.clone()).await?;
+
+    tracing::info!(
+        "scenario {:?}: {} steps; ball {:.0} mm at ({:.2}, {:.2}, {:.2}) m",
+        sc.name,
+        sc.steps.len(),
+        sc.ball.diameter_m * 1000.0,
+        sc.ball.start[0],
+        sc.ball.start[1],
+        sc.ball.start[2]
+    );
+    tokio::time::sleep(Duration::from_secs_f64(cfg.settle_s)).await;
+
+    let mut mark = Instant::now();
+    let mut last_said: Option<String> = None;
+    let mut outcome = Outcome::default();
+    for (i, step) in sc.steps.iter().enumerate() {
+        if shutdown.is_requested() {
+            anyhow::bail!("stopped before step {}", i + 1);
+        }
+        let n = i + 1;
+        match step {
+            Step::Say(text) => {
+                mark = Instant::now();
+                say(&speech_tx, &voice, text, &mut shutdown).await?;
+                println!("person: says {text:?}");
+                last_said = Some(text.clone());
+            }
+            Step::Ball(m) => {
+                mark = Instant::now();
+                let arrival = move_ball(&ball, now_s(), m);
+                println!("person: {}", describe_move(m));
+                if m.wait {
+                    tokio::time::sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0))).await;
+                }
+            }
+            Step::PauseS(s) => {
+                tokio::select! {
+                    _ = tokio::time::sleep(Duration::from_secs_f64(*s)) => {}
+                    _ = shutdown.wait() => anyhow::bail!("stopped during step {n}"),
+                }
+            }
+            Step::Expect(e) => {
+                let mut repeats_left = e.repeat;
+                loop {
+                    let started = Instant::now();
+                    match expect(&bus, &cfg, &sc, e, mark, &seen, &ball, now_s, &mut shutdown)
+                        .await?
+                    {
+                        Ok(figures) => {
+                            if let Some(d) = figures.hand_to_ball_m {
+                                outcome.closest_hand_to_ball_m = Some(
+                                    outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
+                                );
+                            }
+                            println!(
+                                "person: sees {} ({:.1} s){}",
+                                e.describe(),
+                                started.elapsed().as_secs_f64(),
+                                figures.describe()
+                            );
+                            break;
+                        }
+                        Err(why) => {
+                            if repeats_left > 0
+                                && let Some(text) = &last_said
+                            {
+                                repeats_left -= 1;
+                                println!(
+                                    "person: still waiting for {} after {:.0} s; says it again: {text:?}",
+                                    e.describe(),
+                                    e.timeout_s
+                                );
+                                mark = Instant::now();
+                                say(&speech_tx, &voice, text, &mut shutdown).await?;
+                                continue;
+                            }
+                            anyhow::bail!(
+                                "step {n}: expected {} within {:.0} s; {why}",
+                                e.describe(),
+                                e.timeout_s
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        outcome.steps = n;
+    }
+    outcome.duration_s = now_s();
+    Ok(outcome)
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn describe_move(m: &BallMove) -> String {
+    let [x, y, z] = m.to;
+    if !m.present {
+        return format!("takes the ball away, out of the scene ({x:.2}, {y:.2}, {z:.2})");
+    }
+    let how = if m.held { "moves" } else { "puts" };
+    if m.speed_mps > 0.0 {
+        format!(
+            "{how} the ball to ({x:.2}, {y:.2}, {z:.2}) m at {:.2} m/s",
+            m.speed_mps
+        )
+    } else {
+        format!("{how} the ball at ({x:.2}, {y:.2}, {z:.2}) m")
+    }
+}
+
+fn move_ball(ball: &Mutex<Ball>, now_s: f64, m: &BallMove) -> f64 {
+    let mut b = lock(ball);
+    b.move_to(now_s, m.to, m.speed_mps, m.present, m.held);
+    b.arrival_s()
+}
+
+async fn say(
+    speech: &mpsc::Sender<SpeechJob>,
+    voice: &Voice,
+    text: &str,
+    shutdown: &mut interfaces::node::Shutdown,
+) -> anyhow::Result<()> {
+    let (v, t) = (voice.clone(), text.to_string());
+    let samples = tokio::task::spawn_blocking(move || synth::synthesize_16k(&t, &v)).await??;
+    let (done_tx, done_rx) = oneshot::channel();
+    speech
+        .send((samples, done_tx))
+        .await
+        .map_err(|_| anyhow::anyhow!("the audio stream stopped"))?;
+    tokio::select! {
+        r = done_rx => r.map_err(|_| anyhow::anyhow!("the audio stream stopped")),
+        _ = shutdown.wait() => anyhow::bail!("stopped while speaking"),
+    }
+}
+
+/// Room noise in real time, with speech mixed in when there is some.
+async fn audio_stream(
+    out: interfaces::Publisher<AudioChunk>,
+    mut speech: mpsc::Receiver<SpeechJob>,
+    noise_power: f64,
+    seed: u64,
+) {
+    let mut rng = NoiseRng::new(seed);
+    let mut tick = tokio::time::interval(Duration::from_millis(100));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
+    // Current sentence: samples, position, who to tell at the end.
+    let mut current: Option<(Vec<i16>, usize, oneshot::Sender<()>)> = None;
+    loop {
+        tick.tick().await;
+        if current.is_none()
+            && let Ok((s, done)) = speech.try_recv()
+        {
+            // A little silence before and after the words, as people leave.
+            current = Some((s, 0, done));
+        }
+        let noise = pcm::noise(CHUNK, NoiseKind::White, noise_power, &mut rng);
+        let mut chunk: Vec<i16> = noise
+            .iter()
+            .map(|x| x.clamp(-32768.0, 32767.0) as i16)
+            .collect();
+        let mut finished = false;
+        if let Some((s, pos, _)) = current.as_mut() {
+            for (k, c) in chunk.iter_mut().enumerate() {
+                if let Some(v) = s.get(*pos + k) {
+                    *c = (*c as i32 + *v as i32).clamp(-32768, 32767) as i16;
+                }
+            }
+            *pos += CHUNK;
+            finished = *pos >= s.len();
+        }
+        if finished && let Some((_, _, done)) = current.take() {
+            let _ = done.send(());
+        }
+        if let Err(e) = out.publish(&mut AudioChunk::mono(RATE_HZ, &chunk)).await {
+            tracing::warn!("cannot publish audio/in: {e}");
+        }
+    }
+}
+
+async fn spawn_senses(bus: &Bus, seen: Arc<Mutex<Seen>>) -> anyhow::Result<()> {
+    let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
+    let transitions = bus.subscriber(&topics::EXECUTIVE_TRANSITIONS).await?;
+    let reach = bus.subscriber(&topics::BODY_REACH_STATUS).await?;
+    let events = bus.subscriber(&topics::VISION_BALL_EVENTS).await?;
+    tokio::spawn(async move {
+        loop {
+            tokio::select! {
+                m = speaking.recv() => {
+                    let Ok(m) = m else { break };
+                    if m.state == SpeakingState::Started {
+                        println!("person: hears the robot say {:?}", m.text);
+                        lock(&seen).said.push((Instant::now(), m.text.to_lowercase()));
+                    }
+                }
+                m = transitions.recv() => {
+                    let Ok(m) = m else { break };
+                    let mut s = lock(&seen);
+                    let now = Instant::now();
+                    for e in m.entered {
+                        s.entered.push((now, e));
+                    }
+                    s.active = m.active;
+                }
+                m = reach.recv() => {
+                    let Ok(m) = m else { break };
+                    lock(&seen).reach.push((Instant::now(), m.body_part, m.state));
+                }
+                m = events.recv() => {
+                    let Ok(m) = m else { break };
+                    lock(&seen).ball_events.push((Instant::now(), m.kind));
+                }
+            }
+        }
+    });
+    Ok(())
+}
+
+/// Figures measured while checking an expectation.
+#[derive(Debug, Default, Clone, Copy)]
+struct Figures {
+    hand_to_ball_m: Option<f64>,
+    gaze_deg: Option<f64>,
+}
+
+impl Figures {
+    fn describe(&self) -> String {
+        let mut s = String::new();
+        if let Some(d) = self.hand_to_ball_m {
+            s += &format!("; hand {:.1} cm from the ball's surface", d * 100.0);
+        }
+        if let Some(a) = self.gaze_deg {
+            s += &format!("; gaze {a:.1} deg off the ball");
+        }
+        s
+    }
+}
+
+/// Wait for `e`; `Ok(Ok(figures))` when it holds, `Ok(Err(what was seen))` at the time-out.
+#[allow(clippy::too_many_arguments)]
+async fn expect(
+    bus: &Bus,
+    cfg: &PersonConfig,
+    sc: &Scenario,
+    e: &Expect,
+    mark: Instant,
+    seen: &Mutex<Seen>,
+    ball: &Mutex<Ball>,
+    now_s: impl Fn() -> f64,
+    shutdown: &mut interfaces::node::Shutdown,
+) -> anyhow::Result<Result<Figures, String>> {
+    let deadline = Instant::now() + Duration::from_secs_f64(e.timeout_s);
+    let radius = sc.ball.diameter_m / 2.0;
+    let mut last_geometry = String::new();
+    loop {
+        let mut figures = Figures::default();
+        let mut ok = {
+            let s = lock(seen);
+            let since = |t: &Instant| *t >= mark;
+            let said = e.robot_said.as_ref().is_none_or(|w| {
+                let w = w.to_lowercase();
+                s.said.iter().any(|(t, x)| since(t) && x.contains(&w))
+            });
+            let state = e.state.as_ref().is_none_or(|w| {
+                s.entered
+                    .iter()
+                    .any(|(t, x)| since(t) && x.contains(w.as_str()))
+                    || s.active.iter().any(|x| x.contains(w.as_str()))
+            });
+            let reach = e.reach.as_ref().is_none_or(|w| {
+                s.reach
+                    .iter()
+                    .any(|(t, part, st)| since(t) && part != "neck" && reach_name(*st) == w)
+            });
+            let ev = e.ball_event.as_ref().is_none_or(|w| {
+                s.ball_events
+                    .iter()
+                    .any(|(t, k)| since(t) && ball_event_name(*k) == w)
+            });
+            said && state && reach && ev
+        };
+        let b: BallState = lock(ball).at(now_s());
+        if let Some(limit) = e.hand_to_ball_m {
+            match frame_in_world(bus, &cfg.hand_frame).await {
+                Ok((p, _)) => {
+                    let d = dist(&p, &b.position_m) - radius;
+                    figures.hand_to_ball_m = Some(d);
+                    last_geometry = format!(
+                        "the hand is {:.1} cm from the ball's surface (hand at ({:.3}, {:.3}, {:.3}) m)",
+                        d * 100.0,
+                        p[0],
+                        p[1],
+                        p[2]
+                    );
+                    ok &= d <= limit;
+                }
+                Err(err) => {
+                    last_geometry = format!("no hand pose from the DR: {err}");
+                    ok = false;
+                }
+            }
+        }
+        if let Some(limit) = e.gaze_on_ball_deg {
+            match frame_in_world(bus, &cfg.camera_frame).await {
+                Ok((p, q)) => {
+                    let axis = rotate(&q, &[0.0, 0.0, 1.0]);
+                    let to = [
+                        b.position_m[0] - p[0],
+                        b.position_m[1] - p[1],
+                        b.position_m[2] - p[2],
+                    ];
+                    let n = dist(&to, &[0.0; 3]).max(1e-9);
+                    let cos = (axis[0] * to[0] + axis[1] * to[1] + axis[2] * to[2]) / n;
+                    let a = cos.clamp(-1.0, 1.0).acos().to_degrees();
+                    figures.gaze_deg = Some(a);
+                    last_geometry = format!("the gaze is {a:.1} deg off the ball");
+                    ok &= a <= limit;
+                }
+                Err(err) => {
+                    last_geometry = format!("no camera pose from the DR: {err}");
+                    ok = false;
+                }
+            }
+        }
+        if ok {
+            return Ok(Ok(figures));
+        }
+        if Instant::now() >= deadline {
+            let s = lock(seen);
+            let said: Vec<&str> = s
+                .said
+                .iter()
+                .filter(|(t, _)| *t >= mark)
+                .map(|(_, x)| x.as_str())
+                .collect();
+            let reach: Vec<String> = s
+                .reach
+                .iter()
+                .filter(|(t, p, _)| *t >= mark && p != "neck")
+                .map(|(_, p, st)| format!("{p} {}", reach_name(*st)))
+                .collect();
+            let events: Vec<&str> = s
+                .ball_events
+                .iter()
+                .filter(|(t, _)| *t >= mark)
+                .map(|(_, k)| ball_event_name(*k))
+                .collect();
+            return Ok(Err(format!(
+                "seen instead: robot said {said:?}; active states {:?}; arm {reach:?}; ball events {events:?}{}{last_geometry}",
+                s.active,
+                if last_geometry.is_empty() { "" } else { "; " }
+            )));
+        }
+        tokio::select! {
+            _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+            _ = shutdown.wait() => anyhow::bail!("stopped while waiting for {}", e.describe()),
+        }
+    }
+}
+
+/// `world_T_frame` from the DR: translation (m) and rotation `[x, y, z, w]`.
+async fn frame_in_world(bus: &Bus, frame: &str) -> Result<([f64; 3], [f64; 4]), CallError> {
+    let req = TransformRequest {
+        target: "world".into(),
+        source: frame.into(),
+        ..TransformRequest::default()
+    };
+    let rep = bus
+        .call(&topics::DR_TRANSFORM, &req, Duration::from_millis(500))
+        .await?;
+    Ok((rep.transform.translation_m, rep.transform.rotation_xyzw))
+}
+
+/// Rotate `v` by the unit quaternion `q = [x, y, z, w]`.
+pub fn rotate(q: &[f64; 4], v: &[f64; 3]) -> [f64; 3] {
+    let [x, y, z, w] = *q;
+    // v' = v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z)
+    let u = [x, y, z];
+    let cross = |a: &[f64; 3], b: &[f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let uv = cross(&u, v);
+    let uuv = cross(&u, &uv);
+    [
+        v[0] + 2.0 * (w * uv[0] + uuv[0]),
+        v[1] + 2.0 * (w * uv[1] + uuv[1]),
+        v[2] + 2.0 * (w * uv[2] + uuv[2]),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_by_a_quarter_turn_about_z() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let r = rotate(&[0.0, 0.0, h, h], &[1.0, 0.0, 0.0]);
+        assert!((r[0]).abs() < 1e-12 && (r[1] - 1.0).abs() < 1e-12 && r[2].abs() < 1e-12);
+    }
+}
