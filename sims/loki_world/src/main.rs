@@ -16,7 +16,8 @@ use std::process::ExitCode;
 struct Args {
     #[command(flatten)]
     node: NodeArgs,
-    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes) or a TOML file.
+    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench) or a TOML
+    /// file.
     #[arg(long, default_value = "still")]
     scenario: String,
     /// `sim/ball` rate (Hz).
@@ -94,6 +95,13 @@ fn main() -> ExitCode {
                 .map(|d| format!("; closest hand to ball surface {:.1} cm", d * 100.0))
                 .unwrap_or_default()
         );
+        // One machine-readable line for benchmarks: each expectation's delay after its action.
+        let timings: Vec<String> = o
+            .timings
+            .iter()
+            .map(|(n, what, s)| format!("{{\"step\":{n},\"what\":{what:?},\"after_s\":{s:.3}}}"))
+            .collect();
+        println!("person: timings [{}]", timings.join(","));
         Ok(())
     })
 }

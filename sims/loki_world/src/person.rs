@@ -81,6 +81,9 @@ pub struct Outcome {
     pub duration_s: f64,
     /// Closest the hand came to the ball's surface while an expectation watched it (m).
     pub closest_hand_to_ball_m: Option<f64>,
+    /// Every expectation met: (step number, what, seconds from the end of the action before it,
+    /// i.e. the end of the person's sentence or the start of the ball's move).
+    pub timings: Vec<(usize, String, f64)>,
 }
 
 /// A speech job for the audio task: samples to mix in, and who to tell when they are out.
@@ -162,6 +165,7 @@ pub async fn run(
     tokio::time::sleep(Duration::from_secs_f64(cfg.settle_s)).await;
 
     let mut mark = Instant::now();
+    let mut action_end = Instant::now();
     let mut last_said: Option<String> = None;
     let mut outcome = Outcome::default();
     for (i, step) in sc.steps.iter().enumerate() {
@@ -173,12 +177,14 @@ pub async fn run(
             Step::Say(text) => {
                 mark = Instant::now();
                 say(&speech_tx, &voice, text, &mut shutdown).await?;
+                action_end = Instant::now();
                 println!("person: says {text:?}");
                 last_said = Some(text.clone());
             }
             Step::Ball(m) => {
                 mark = Instant::now();
                 let arrival = move_ball(&ball, now_s(), m);
+                action_end = Instant::now();
                 println!("person: {}", describe_move(m));
                 if m.wait {
                     tokio::time::sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0))).await;
@@ -203,12 +209,15 @@ pub async fn run(
                                     outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
                                 );
                             }
+                            let after_s = action_end.elapsed().as_secs_f64();
                             println!(
-                                "person: sees {} ({:.1} s){}",
+                                "person: sees {} ({:.1} s after the last action, waited {:.1} s){}",
                                 e.describe(),
+                                after_s,
                                 started.elapsed().as_secs_f64(),
                                 figures.describe()
                             );
+                            outcome.timings.push((n, e.describe(), after_s));
                             break;
                         }
                         Err(why) => {
@@ -223,6 +232,7 @@ pub async fn run(
                                 );
                                 mark = Instant::now();
                                 say(&speech_tx, &voice, text, &mut shutdown).await?;
+                                action_end = Instant::now();
                                 continue;
                             }
                             anyhow::bail!(

@@ -47,6 +47,7 @@ pub const BUILT_IN: &[(&str, &str)] = &[
     ("out_of_view", include_str!("../scenarios/out_of_view.toml")),
     ("unreachable", include_str!("../scenarios/unreachable.toml")),
     ("confirm_yes", include_str!("../scenarios/confirm_yes.toml")),
+    ("bench", include_str!("../scenarios/bench.toml")),
 ];
 
 #[derive(Debug, thiserror::Error)]
@@ -70,7 +71,7 @@ pub enum ScenarioError {
     #[error("scenario {origin}: {why}")]
     InvalidBall { origin: String, why: String },
     #[error(
-        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes)"
+        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench)"
     )]
     Unknown(String),
 }
