@@ -16,7 +16,8 @@ use std::process::ExitCode;
 struct Args {
     #[command(flatten)]
     node: NodeArgs,
-    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench) or a TOML
+    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench,
+    /// tracker_restart) or a TOML
     /// file.
     #[arg(long, default_value = "still")]
     scenario: String,

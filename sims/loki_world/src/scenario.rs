@@ -48,6 +48,10 @@ pub const BUILT_IN: &[(&str, &str)] = &[
     ("unreachable", include_str!("../scenarios/unreachable.toml")),
     ("confirm_yes", include_str!("../scenarios/confirm_yes.toml")),
     ("bench", include_str!("../scenarios/bench.toml")),
+    (
+        "tracker_restart",
+        include_str!("../scenarios/tracker_restart.toml"),
+    ),
 ];
 
 #[derive(Debug, thiserror::Error)]
@@ -71,7 +75,7 @@ pub enum ScenarioError {
     #[error("scenario {origin}: {why}")]
     InvalidBall { origin: String, why: String },
     #[error(
-        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench)"
+        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, tracker_restart)"
     )]
     Unknown(String),
 }

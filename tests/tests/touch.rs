@@ -1,0 +1,250 @@
+#![allow(clippy::unwrap_used)]
+//! Acceptance tests of Loki's "touch the ball" game: `launch/touch_the_ball.toml` with every
+//! component a separate process on the bus, the simulated person playing one scenario. Each test
+//! asserts the game's sequence of states (from `executive/transitions`), what the robot said
+//! (`speech/speaking`), and the geometry from the DR (the hand against the true ball, the DR's
+//! ball against the true ball) at the moments that matter.
+//!
+//! These are long (30-90 s each): real speech synthesis and recognition, 30 Hz rendering and
+//! tracking, IK and joint dynamics, all on the machine's cores.
+
+use interfaces::msg::body::ReachState;
+use interfaces::msg::dr::TransformRequest;
+use interfaces::msg::speech::SpeakingState;
+use interfaces::msg::tracking::SimBall;
+use interfaces::{Bus, topics};
+use robocog_tests::*;
+use std::time::Duration;
+use tokio::time::Instant;
+
+/// What a game did, as seen on the bus.
+#[derive(Debug, Default)]
+struct Game {
+    /// Every state entered, in order.
+    entered: Vec<String>,
+    /// What the robot started saying, in order (lowercase).
+    said: Vec<String>,
+    /// Arm reach states (not the neck), in order.
+    arm: Vec<ReachState>,
+    /// At each arm `Reached`: distance from the hand centre to the true ball's surface (m), and
+    /// from the DR's ball to the true ball's centre (m).
+    touches: Vec<(f64, f64)>,
+    /// The pid killed by the test's hook.
+    killed: Option<u32>,
+    /// The launcher's exit code and output.
+    exit: Option<i32>,
+    output: Vec<String>,
+}
+
+impl Game {
+    /// Whether `wanted` appear in `entered` in this order (each matched by substring).
+    fn entered_in_order(&self, wanted: &[&str]) -> Result<(), String> {
+        let mut it = self.entered.iter();
+        for w in wanted {
+            if !it.any(|s| s.contains(w)) {
+                return Err(format!("no state ~{w:?} in order in {:?}", self.entered));
+            }
+        }
+        Ok(())
+    }
+    fn said_any(&self, words: &str) -> bool {
+        self.said.iter().any(|s| s.contains(words))
+    }
+}
+
+async fn world_point(bus: &Bus, frame: &str) -> Option<[f64; 3]> {
+    let req = TransformRequest {
+        target: "world".into(),
+        source: frame.into(),
+        ..TransformRequest::default()
+    };
+    bus.call(&topics::DR_TRANSFORM, &req, Duration::from_secs(1))
+        .await
+        .ok()
+        .map(|r| r.transform.translation_m)
+}
+
+fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Play `scenario` to its end (at most `limit`), watching the bus.
+async fn play(scenario: &str, extra_sets: &[&str], limit: Duration) -> Game {
+    play_with(scenario, extra_sets, limit, None).await
+}
+
+/// Kill a component (SIGKILL) once an output line contains a text: `(text, component)`.
+type KillHook<'a> = Option<(&'a str, &'a str)>;
+
+async fn play_with(
+    scenario: &str,
+    extra_sets: &[&str],
+    limit: Duration,
+    mut kill: KillHook<'_>,
+) -> Game {
+    let ns = unique_namespace("touch");
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/touch_the_ball.toml");
+    let set = format!("scenario={scenario}");
+    let mut extra = vec!["--set", set.as_str()];
+    for s in extra_sets {
+        extra.push("--set");
+        extra.push(s);
+    }
+    let mut launch = Launch::start(&manifest, &ns, &extra);
+    launch
+        .lines
+        .wait_for("the DR up", Duration::from_secs(60), |l| {
+            l.contains("deep_representation is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-touch")
+        .await
+        .unwrap();
+    let transitions = bus
+        .subscriber(&topics::EXECUTIVE_TRANSITIONS)
+        .await
+        .unwrap();
+    let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await.unwrap();
+    let reach = bus.subscriber(&topics::BODY_REACH_STATUS).await.unwrap();
+    let balls = bus.subscriber(&topics::SIM_BALL).await.unwrap();
+    let mut game = Game::default();
+    let mut truth: Option<SimBall> = None;
+    let deadline = Instant::now() + limit;
+    let mut tick = tokio::time::interval(Duration::from_millis(100));
+    loop {
+        tokio::select! {
+            t = transitions.recv() => game.entered.extend(t.unwrap().entered),
+            s = speaking.recv() => {
+                let s = s.unwrap();
+                if s.state == SpeakingState::Started {
+                    game.said.push(s.text.to_lowercase());
+                }
+            }
+            b = balls.recv() => truth = Some(b.unwrap()),
+            r = reach.recv() => {
+                let r = r.unwrap();
+                if r.body_part == "neck" {
+                    continue;
+                }
+                game.arm.push(r.state);
+                if r.state == ReachState::Reached {
+                    let hand = world_point(&bus, "left_hand_center").await;
+                    let dr_ball = world_point(&bus, "ball").await;
+                    if let (Some(hand), Some(dr_ball), Some(t)) = (hand, dr_ball, &truth) {
+                        let r_m = t.diameter_m / 2.0;
+                        game.touches.push((
+                            dist(&hand, &t.centre_world_m) - r_m,
+                            dist(&dr_ball, &t.centre_world_m),
+                        ));
+                    }
+                }
+            }
+            _ = tick.tick() => {
+                if let Some((text, component)) = kill
+                    && launch.lines.count(|l| l.contains(text)) > 0
+                {
+                    let pid = tokio::task::block_in_place(|| component_pid(&launch, component))
+                        .unwrap_or_else(|| panic!("no pid for {component}"));
+                    signal(pid, "KILL");
+                    game.killed = Some(pid);
+                    kill = None;
+                }
+                if let Ok(Some(status)) = launch.child.try_wait() {
+                    game.exit = status.code();
+                    break;
+                }
+                assert!(
+                    Instant::now() < deadline,
+                    "the game did not end within {limit:?}; so far: {game:?}\noutput:\n{}",
+                    launch.lines.all().join("\n")
+                );
+            }
+        }
+    }
+    // Let the output readers catch the last lines.
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    game.output = launch.lines.all();
+    game
+}
+
+fn check_ok(game: &Game) {
+    assert_eq!(
+        game.exit,
+        Some(0),
+        "the scenario failed; game: {game:?}\noutput:\n{}",
+        game.output.join("\n")
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn touch_a_still_ball() {
+    let game = play("still", &[], Duration::from_secs(180)).await;
+    check_ok(&game);
+    game.entered_in_order(&["greet", "search", "track", "reach", "home", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    assert!(game.said_any("hello"), "{:?}", game.said);
+    assert!(game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
+    let (hand, ball) = *game.touches.first().expect("a touch measured");
+    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+    assert!(ball <= 0.02, "DR ball {:.1} cm from the truth", ball * 100.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn touch_a_moving_ball() {
+    let game = play("moving", &[], Duration::from_secs(180)).await;
+    check_ok(&game);
+    game.entered_in_order(&["track", "reach", "home", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    assert!(game.said_any("follow"), "{:?}", game.said);
+    // The person's own check (hand within 3 cm of the moved ball) passed; the arm reached again
+    // after the ball moved.
+    let reached = game
+        .arm
+        .iter()
+        .filter(|s| **s == ReachState::Reached)
+        .count();
+    assert!(reached >= 1, "{:?}", game.arm);
+    let (hand, _) = *game.touches.last().expect("a touch measured");
+    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_ball_leaves_the_view_and_comes_back() {
+    let game = play("out_of_view", &[], Duration::from_secs(180)).await;
+    check_ok(&game);
+    game.entered_in_order(&["track", "search", "track", "reach", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    assert!(game.said_any("lost the ball"), "{:?}", game.said);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_unreachable_ball_is_explained() {
+    let game = play("unreachable", &[], Duration::from_secs(150)).await;
+    check_ok(&game);
+    assert!(game.arm.contains(&ReachState::Unreachable), "{:?}", game.arm);
+    assert!(!game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
+    assert!(game.said_any("reach"), "{:?}", game.said);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
+    let game = play_with(
+        "tracker_restart",
+        &[],
+        Duration::from_secs(200),
+        Some(("person: sees gaze within", "ball_tracker")),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    // The launcher restarted it (a new process), the robot said so and found the ball again.
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("ball_tracker") && l.contains("restart")),
+        "no restart in the output"
+    );
+    assert!(game.said_any("lost the ball"), "{:?}", game.said);
+    game.entered_in_order(&["track", "search", "track", "reach", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+}
