@@ -49,6 +49,8 @@ pub struct PersonConfig {
 #[derive(Debug, Default)]
 struct Seen {
     said: Vec<(Instant, String)>,
+    /// The robot is speaking (between Started and Finished/Interrupted/...).
+    robot_speaking: bool,
     entered: Vec<(Instant, String)>,
     active: Vec<String>,
     reach: Vec<(Instant, String, ReachState)>,
@@ -176,7 +178,7 @@ pub async fn run(
         match step {
             Step::Say(text) => {
                 mark = Instant::now();
-                say(&speech_tx, &voice, text, &mut shutdown).await?;
+                say(&speech_tx, &voice, text, &seen, &mut shutdown).await?;
                 action_end = Instant::now();
                 println!("person: says {text:?}");
                 last_said = Some(text.clone());
@@ -231,7 +233,7 @@ pub async fn run(
                                     e.timeout_s
                                 );
                                 mark = Instant::now();
-                                say(&speech_tx, &voice, text, &mut shutdown).await?;
+                                say(&speech_tx, &voice, text, &seen, &mut shutdown).await?;
                                 action_end = Instant::now();
                                 continue;
                             }
@@ -277,12 +279,32 @@ fn move_ball(ball: &Mutex<Ball>, now_s: f64, m: &BallMove) -> f64 {
     b.arrival_s()
 }
 
+/// How long the person waits for the robot to finish speaking before she talks anyway (s).
+const TURN_WAIT_S: f64 = 8.0;
+
+/// Speak `text`, taking turns: first wait (at most [`TURN_WAIT_S`]) for the robot to finish what
+/// it is saying, as people do (and as the dialog expects: it ignores speech heard while the robot
+/// talks, its own echo guard).
 async fn say(
     speech: &mpsc::Sender<SpeechJob>,
     voice: &Voice,
     text: &str,
+    seen: &Mutex<Seen>,
     shutdown: &mut interfaces::node::Shutdown,
 ) -> anyhow::Result<()> {
+    let turn = Instant::now() + Duration::from_secs_f64(TURN_WAIT_S);
+    let mut waited = false;
+    while lock(seen).robot_speaking && Instant::now() < turn {
+        waited = true;
+        tokio::select! {
+            _ = tokio::time::sleep(Duration::from_millis(50)) => {}
+            _ = shutdown.wait() => anyhow::bail!("stopped while waiting to speak"),
+        }
+    }
+    if waited {
+        // A short pause after the robot's last word.
+        tokio::time::sleep(Duration::from_millis(400)).await;
+    }
     let (v, t) = (voice.clone(), text.to_string());
     let samples = tokio::task::spawn_blocking(move || synth::synthesize_16k(&t, &v)).await??;
     let (done_tx, done_rx) = oneshot::channel();
@@ -350,9 +372,15 @@ async fn spawn_senses(bus: &Bus, seen: Arc<Mutex<Seen>>) -> anyhow::Result<()> {
             tokio::select! {
                 m = speaking.recv() => {
                     let Ok(m) = m else { break };
-                    if m.state == SpeakingState::Started {
-                        println!("person: hears the robot say {:?}", m.text);
-                        lock(&seen).said.push((Instant::now(), m.text.to_lowercase()));
+                    let mut s = lock(&seen);
+                    match m.state {
+                        SpeakingState::Started => {
+                            println!("person: hears the robot say {:?}", m.text);
+                            s.said.push((Instant::now(), m.text.to_lowercase()));
+                            s.robot_speaking = true;
+                        }
+                        SpeakingState::Queued => {}
+                        _ => s.robot_speaking = false,
                     }
                 }
                 m = transitions.recv() => {
