@@ -45,3 +45,20 @@ build_all() {
   step "building every robocog binary (release, into $CARGO_TARGET_DIR)"
   (cd "$ROOT" && cargo build --release --workspace --bins --examples)
 }
+
+# The command panel's browser tests: Debian's Chromium and node/npm (apt), and playwright-core
+# pinned by tests/browser/package-lock.json (npm ci, only when node_modules is missing or older
+# than the lock file). Idempotent.
+need_browser() {
+  need_debs chromium
+  # node and npm may come from elsewhere than Debian (the machine image ships them).
+  if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+    need_debs nodejs npm
+  fi
+  local dir="$ROOT/tests/browser"
+  if [ ! -f "$dir/node_modules/playwright-core/package.json" ] ||
+     [ "$dir/package-lock.json" -nt "$dir/node_modules/.package-lock.json" ]; then
+    step "installing playwright-core for the browser tests (npm ci in tests/browser)"
+    (cd "$dir" && npm ci --no-audit --no-fund --silent)
+  fi
+}

@@ -1,0 +1,267 @@
+//! The `command_generator` process: the bus on one side, the pages on the other.
+//!
+//! Subscribes to what both games publish, keeps the latest value of each state topic in the
+//! [`Hub`] (throttled per page, see [`STATE_RATES`]) and passes events on; publishes the accepted
+//! commands on `nao/command`, `game/command` and `game/answer`. Camera frames are decimated to
+//! `camera_hz` before they are encoded, so a 30 Hz camera costs a few encodes a second.
+
+use crate::camera;
+use crate::panel::Outgoing;
+use crate::server::{Hub, router};
+use interfaces::msg::Message;
+use interfaces::{Bus, Shutdown, Subscriber, Topic, topics};
+use serde::Serialize;
+use serde_json::json;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+use tokio::task::JoinSet;
+
+/// The panel's settings.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// Where the HTTP server listens (port 0: any free port, printed at start).
+    pub listen: SocketAddr,
+    /// Required on `/` and `/ws` when set.
+    pub token: Option<String>,
+    /// Camera images per second sent to the pages (at most).
+    pub camera_hz: f64,
+}
+
+/// Most updates per second each page gets of each state topic (per robot for local models).
+pub const STATE_RATES: &[(&str, f64)] = &[
+    ("nao/world_model", 10.0),
+    ("nao/local_model", 5.0),
+    ("nao/game_state", 4.0),
+    ("vision/ball", 10.0),
+    ("executive/transitions", 10.0),
+];
+
+fn interval_of(topic: &str) -> Duration {
+    let hz = STATE_RATES
+        .iter()
+        .find(|(t, _)| *t == topic)
+        .map_or(10.0, |(_, hz)| *hz);
+    Duration::from_secs_f64(1.0 / hz)
+}
+
+/// The JSON message a page gets for a state or an event: `{"type", "topic", "data"}`.
+pub fn envelope<T: Serialize>(kind: &str, topic: &str, data: &T) -> String {
+    json!({ "type": kind, "topic": topic, "data": data }).to_string()
+}
+
+/// Run the panel until shutdown.
+pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let listener = tokio::net::TcpListener::bind(config.listen)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", config.listen))?;
+    let addr = listener.local_addr()?;
+    let (hub, commands) = Hub::new(bus.counters().clone(), config.token.clone());
+
+    let mut tasks = JoinSet::new();
+    // State topics: the latest value, throttled per page.
+    state(&mut tasks, &bus, &hub, &topics::NAO_WORLD_MODEL, |_| {
+        String::new()
+    })
+    .await?;
+    state(&mut tasks, &bus, &hub, &topics::NAO_LOCAL_MODEL, |m| {
+        format!("/{}", m.player_number)
+    })
+    .await?;
+    state(&mut tasks, &bus, &hub, &topics::NAO_GAME_STATE, |_| {
+        String::new()
+    })
+    .await?;
+    let tracks = TrackRing::default();
+    {
+        let sub = bus.subscriber(&topics::VISION_BALL).await?;
+        let (hub, tracks) = (hub.clone(), tracks.clone());
+        let every = interval_of(topics::VISION_BALL.name());
+        tasks.spawn(async move {
+            loop {
+                let m = sub.recv().await?;
+                tracks.push(m.frame_seq, serde_json::to_value(&m)?);
+                hub.set_state("vision/ball", every, envelope("state", "vision/ball", &m));
+            }
+        });
+    }
+    state(
+        &mut tasks,
+        &bus,
+        &hub,
+        &topics::EXECUTIVE_TRANSITIONS,
+        |m| format!("/{}", m.machine),
+    )
+    .await?;
+    // Events: every one, in order.
+    event(&mut tasks, &bus, &hub, &topics::NAO_LINK).await?;
+    event(&mut tasks, &bus, &hub, &topics::SPEECH_SAY).await?;
+    event(&mut tasks, &bus, &hub, &topics::SPEECH_SPEAKING).await?;
+    event(&mut tasks, &bus, &hub, &topics::SPEECH_UTTERANCE).await?;
+    event(&mut tasks, &bus, &hub, &topics::GAME_COMMAND).await?;
+    event(&mut tasks, &bus, &hub, &topics::EXECUTIVE_LOG).await?;
+    event(&mut tasks, &bus, &hub, &topics::VISION_BALL_EVENTS).await?;
+    // The camera, decimated and encoded.
+    let frames = bus.subscriber_named(topics::VISION_RGBD.name(), 2).await?;
+    tasks.spawn(camera_task(
+        frames,
+        hub.clone(),
+        tracks,
+        config.camera_hz,
+        bus.clone(),
+    ));
+    tasks.spawn(publish_task(bus.clone(), commands));
+
+    let app = router(hub.clone());
+    let mut stop = shutdown.clone();
+    tracing::info!(
+        "command panel on http://{addr}/{}",
+        if config.token.is_some() {
+            "?token=<token>"
+        } else {
+            ""
+        }
+    );
+    let server =
+        axum::serve(listener, app).with_graceful_shutdown(async move { stop.wait().await });
+    let result = tokio::select! {
+        r = server => r.map_err(|e| anyhow::anyhow!("HTTP server failed: {e}")),
+        r = tasks.join_next() => match r {
+            Some(Ok(Err(e))) => Err(e),
+            Some(Err(e)) => Err(anyhow::anyhow!("a panel task panicked: {e}")),
+            _ => Ok(()),
+        },
+        _ = shutdown.wait() => Ok(()),
+    };
+    tasks.abort_all();
+    result
+}
+
+async fn state<T: Message>(
+    tasks: &mut JoinSet<anyhow::Result<()>>,
+    bus: &Bus,
+    hub: &Arc<Hub>,
+    topic: &'static Topic<T>,
+    key: fn(&T) -> String,
+) -> anyhow::Result<()> {
+    let sub = bus.subscriber(topic).await?;
+    let hub = hub.clone();
+    let every = interval_of(topic.name());
+    tasks.spawn(async move {
+        loop {
+            let m = sub.recv().await?;
+            let k = format!("{}{}", topic.name(), key(&m));
+            hub.set_state(&k, every, envelope("state", topic.name(), &m));
+        }
+    });
+    Ok(())
+}
+
+async fn event<T: Message>(
+    tasks: &mut JoinSet<anyhow::Result<()>>,
+    bus: &Bus,
+    hub: &Arc<Hub>,
+    topic: &'static Topic<T>,
+) -> anyhow::Result<()> {
+    let sub = bus.subscriber(topic).await?;
+    let hub = hub.clone();
+    tasks.spawn(async move {
+        loop {
+            let m = sub.recv().await?;
+            hub.event(envelope("event", topic.name(), &m));
+        }
+    });
+    Ok(())
+}
+
+/// The last ball tracks by frame sequence number, so an image goes out with the track computed
+/// from it (the tracker's result arrives a few ms after the frame).
+#[derive(Debug, Clone, Default)]
+struct TrackRing(Arc<std::sync::Mutex<std::collections::VecDeque<(u64, serde_json::Value)>>>);
+
+impl TrackRing {
+    const LEN: usize = 64;
+    fn push(&self, seq: u64, track: serde_json::Value) {
+        let mut r = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        if r.len() == Self::LEN {
+            r.pop_front();
+        }
+        r.push_back((seq, track));
+    }
+    fn get(&self, seq: u64) -> Option<serde_json::Value> {
+        let r = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        r.iter()
+            .rev()
+            .find(|(s, _)| *s == seq)
+            .map(|(_, t)| t.clone())
+    }
+}
+
+/// How long an image waits for the tracker's result on it.
+const TRACK_WAIT: Duration = Duration::from_millis(60);
+
+async fn camera_task(
+    frames: Subscriber<interfaces::msg::vision::RgbdFrame>,
+    hub: Arc<Hub>,
+    tracks: TrackRing,
+    camera_hz: f64,
+    bus: Bus,
+) -> anyhow::Result<()> {
+    let every = Duration::from_secs_f64(1.0 / camera_hz.clamp(0.1, 30.0));
+    let counters = bus.counters().clone();
+    let mut last: Option<Instant> = None;
+    loop {
+        let frame = frames.recv().await?;
+        if last.is_some_and(|t| t.elapsed() < every) {
+            continue;
+        }
+        last = Some(Instant::now());
+        let seq = frame.header.seq;
+        let mut meta = json!({
+            "width": frame.width, "height": frame.height, "seq": seq,
+            "stamp_ns": frame.header.stamp_ns, "frame_id": frame.header.frame_id,
+        });
+        let encoded = tokio::task::spawn_blocking(move || camera::to_jpeg(&frame)).await?;
+        match encoded {
+            Ok(jpeg) => {
+                let deadline = Instant::now() + TRACK_WAIT;
+                let track = loop {
+                    if let Some(t) = tracks.get(seq) {
+                        break t;
+                    }
+                    if Instant::now() >= deadline {
+                        break serde_json::Value::Null;
+                    }
+                    tokio::time::sleep(Duration::from_millis(5)).await;
+                };
+                meta["track"] = track;
+                hub.set_camera(every, envelope("state", "vision/rgbd", &meta), jpeg);
+                counters.incr("camera/encoded");
+            }
+            Err(e) => {
+                counters.incr("camera/dropped");
+                tracing::warn!("camera frame not shown: {e}");
+            }
+        }
+    }
+}
+
+async fn publish_task(bus: Bus, mut commands: mpsc::Receiver<Outgoing>) -> anyhow::Result<()> {
+    let nao = bus.publisher(&topics::NAO_COMMAND).await?;
+    let game = bus.publisher(&topics::GAME_COMMAND).await?;
+    let answer = bus.publisher(&topics::GAME_ANSWER).await?;
+    while let Some(out) = commands.recv().await {
+        // The Nao first: it is the one with a deadline.
+        if let Some(mut m) = out.nao {
+            nao.publish(&mut m).await?;
+        }
+        if let Some(mut m) = out.game {
+            game.publish(&mut m).await?;
+        }
+        if let Some(mut m) = out.answer {
+            answer.publish(&mut m).await?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,142 @@
+// The command panel end to end in headless Chromium, against a running graph (the Rust test
+// tests/tests/panel.rs starts it and checks the robot's side):
+//   node panel.mjs --url http://127.0.0.1:PORT/ --out DIR --target-x -2000 --target-y -1500
+// Steps (each printed as `PANEL <step> <json>`): robots move on the page; GoToPosition + a click
+// on the field is sent (the page's target is printed for the robot-side check); the spoken answer
+// appears; a click off the carpet is refused with its reason; bad input over a raw WebSocket is
+// refused and the server keeps serving; screenshots of both views.
+import { launch, report, fail, arg, until, clickField } from './lib.mjs';
+
+const url = arg('url');
+const out = arg('out');
+const tx = Number(arg('target-x', '-2000'));
+const ty = Number(arg('target-y', '-1500'));
+
+const browser = await launch();
+try {
+  const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
+  const consoleErrors = [];
+  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+  page.on('pageerror', (e) => consoleErrors.push(String(e)));
+  await page.goto(url + '#coach');
+  await until('the page to connect', 10000, async () => (await page.textContent('#conn')) === 'connected');
+  await until('the buttons', 5000, async () => page.locator('button[data-name="GoToPosition"]').count());
+
+  // 1. The robots move on the page: positions change between two reads.
+  const robots = async () => page.$$eval('#robots tbody tr', (rows) =>
+    rows.map((r) => ({ player: Number(r.dataset.player), x: Number(r.dataset.x), y: Number(r.dataset.y) })));
+  const first = await until('robots on the page', 15000, async () => { const r = await robots(); return r.length >= 2 && r; });
+  let moved;
+  await until('a robot to move on the page', 10000, async () => {
+    const now = await robots();
+    moved = now.find((r) => {
+      const f = first.find((q) => q.player === r.player);
+      return f && Math.hypot(r.x - f.x, r.y - f.y) > 20;
+    });
+    return moved;
+  });
+  const f = first.find((q) => q.player === moved.player);
+  report('robots_moving', { player: moved.player, from: [f.x, f.y], to: [moved.x, moved.y] });
+  await until('the game to be PLAYING', 20000, async () => (await page.textContent('#game-state')).startsWith('PLAYING'));
+  report('game_state', { state: await page.textContent('#game-state'), time: await page.textContent('#time-left'),
+    score: await page.textContent('#score'), link: await page.textContent('#link') });
+
+  // 2. GoToPosition, then a click on the field.
+  await page.click('button[data-name="GoToPosition"]');
+  await clickField(page, tx, ty);
+  await until('GoToPosition to be sent', 5000, async () => (await page.textContent('#notice')).startsWith('sent: GoToPosition'));
+  const target = await page.evaluate(() => window.panel.state.target);
+  if (!target || Math.hypot(target.x_mm - tx, target.y_mm - ty) > 60) fail(`the page's target ${JSON.stringify(target)} is not near (${tx}, ${ty})`);
+  report('clicked', { target, sent_at_ms: Date.now() });
+  const accepted = await until('an accepted history entry', 5000, async () =>
+    page.$eval('#history li', (li) => li.dataset.status === 'accepted' && li.textContent));
+  report('history', { first: accepted });
+
+  // 3. The spoken answer appears (speech/say).
+  const said = await until('the spoken answer', 15000, async () => page.$eval('#said', (ol) => ol.textContent.trim()));
+  report('said', { text: said });
+  await page.waitForTimeout(1500); // let the robot walk a little for the screenshot
+  await page.screenshot({ path: `${out}/panel-coach.png` });
+  report('screenshot', { file: `${out}/panel-coach.png` });
+
+  // 4. A click off the carpet (keyboard shortcut g, then the dark margin): refused, reason shown.
+  await page.keyboard.press('g');
+  await clickField(page, 5400, 0);
+  const reason = await until('the refusal', 5000, async () => {
+    const n = await page.textContent('#notice');
+    return n.startsWith('refused:') && n;
+  });
+  if (!reason.includes('outside the field')) fail(`unexpected refusal: ${reason}`);
+  await until('the refusal in the history', 5000, async () =>
+    page.$eval('#history li', (li) => li.dataset.status === 'refused' && li.textContent.includes('outside the field')));
+  report('refused_target', { notice: reason });
+
+  // 5. Raw WebSocket abuse from the page's origin: each refused with a reason; a message over the
+  // transport's limit closes that socket; a new socket is served.
+  const raw = await page.evaluate(async () => {
+    const open = () => new Promise((res, rej) => {
+      const ws = new WebSocket(`ws://${location.host}/ws${location.search}`);
+      ws.onopen = () => res(ws);
+      ws.onerror = () => rej(new Error('cannot open'));
+    });
+    const reply = (ws, text) => new Promise((res) => {
+      const on = (ev) => {
+        if (typeof ev.data !== 'string') return;
+        const m = JSON.parse(ev.data);
+        if (m.type === 'reply') { ws.removeEventListener('message', on); res(m); }
+      };
+      ws.addEventListener('message', on);
+      ws.send(text);
+    });
+    const ws = await open();
+    const results = {};
+    results.malformed = await reply(ws, '{"type": "command", "game": ');
+    results.unknown = await reply(ws, '{"id": 77, "type": "command", "game": "coach", "command": "Fly"}');
+    results.huge = await reply(ws, JSON.stringify({ id: 78, type: 'answer', yes: true, pad: 'x'.repeat(100000) }));
+    results.closed = await new Promise((res) => {
+      ws.onclose = (ev) => res({ code: ev.code });
+      ws.send('z'.repeat(2 * 1024 * 1024));
+      setTimeout(() => res({ code: -1 }), 5000);
+    });
+    const again = await open();
+    results.after = await reply(again, '{"id": 79, "type": "command", "game": "coach", "command": "LookLeft"}');
+    again.close();
+    return results;
+  });
+  const why = (r) => r.entry && r.entry.reason;
+  if (raw.malformed.ok || !why(raw.malformed).startsWith('malformed message')) fail(`malformed: ${JSON.stringify(raw.malformed)}`);
+  if (raw.unknown.ok || why(raw.unknown) !== 'unknown command "Fly"' || raw.unknown.id !== 77) fail(`unknown: ${JSON.stringify(raw.unknown)}`);
+  if (raw.huge.ok || !why(raw.huge).startsWith('message too large')) fail(`huge: ${JSON.stringify(raw.huge)}`);
+  if (raw.closed.code === -1) fail('a 2 MiB message did not close its connection');
+  if (!raw.after.ok) fail(`the server stopped serving: ${JSON.stringify(raw.after)}`);
+  report('raw_websocket', { malformed: why(raw.malformed), unknown: why(raw.unknown), huge: why(raw.huge),
+    closed_code: raw.closed.code, after: raw.after.entry.label });
+  // The page itself is still connected and the refusals are in its history.
+  const refusals = await page.$$eval('#history li[data-status="refused"]', (l) => l.length);
+  if (refusals < 4) fail(`expected at least 4 refused entries in the history, got ${refusals}`);
+
+  // 6. The touch view (camera, ball window, dialog), by its shortcut.
+  await page.keyboard.press('2');
+  await until('the touch view', 3000, async () => page.isVisible('#view-touch'));
+  const camera = await until('a camera image', 15000, async () =>
+    page.$eval('#camera', (img) => img.naturalWidth > 0 && { width: img.naturalWidth, height: img.naturalHeight }));
+  const ball = await until('a ball track', 10000, async () => {
+    const t = await page.textContent('#ball-info');
+    return t.startsWith('tracking') && t.includes('window') && t;
+  });
+  report('touch', { camera, ball });
+  await page.click('button[data-name="TouchBall"]');
+  await until('TouchBall to be sent', 5000, async () => (await page.textContent('#notice')).startsWith('sent: TouchBall'));
+  await page.keyboard.press('y');
+  await until('the yes answer to be sent', 5000, async () => (await page.textContent('#notice')).startsWith('sent: answer: yes'));
+  await page.waitForTimeout(500);
+  await page.screenshot({ path: `${out}/panel-touch.png` });
+  report('screenshot', { file: `${out}/panel-touch.png` });
+
+  if (consoleErrors.length) fail(`errors in the page's console: ${consoleErrors.join(' | ')}`);
+  report('done');
+} catch (e) {
+  fail(e && e.stack ? e.stack : String(e));
+} finally {
+  await browser.close();
+}
