@@ -8,7 +8,8 @@
 //!   message's type name as schema, so any tool can decode it by name.
 //! - Payloads from [`SHM_THRESHOLD`] bytes up (camera frames) are written once, straight into a
 //!   zenoh shared-memory buffer; a subscriber on the same host reads them without a copy through
-//!   the network stack.
+//!   the network stack. Each subscriber counts the samples that really arrived in shared memory
+//!   ([`Subscriber::shm_received`], and the bus counter `shm_received/<topic>`).
 //! - A payload that does not decode as the topic's type is counted (per topic, in the bus'
 //!   [`Counters`], published on `diagnostics`) and logged at most once a second per topic; the
 //!   subscriber carries on.
@@ -368,6 +369,10 @@ impl Bus {
                 .inner
                 .counters
                 .counter(&format!("decode_errors/{name}")),
+            received: AtomicU64::new(0),
+            shm_received: AtomicU64::new(0),
+            shm_counter: OnceLock::new(),
+            counters: self.inner.counters.clone(),
             limiter: Mutex::new(RateLimiter::new(Duration::from_secs(1))),
             _token: token,
             _type: PhantomData,
@@ -581,6 +586,13 @@ pub struct Subscriber<T: Message> {
     inner: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
     topic: String,
     decode_errors: Arc<AtomicU64>,
+    /// Samples taken from the queue (decoded or not).
+    received: AtomicU64,
+    /// Of those, samples whose payload was a zenoh shared-memory buffer.
+    shm_received: AtomicU64,
+    /// The bus counter `shm_received/<topic>`, created with the first shared-memory sample.
+    shm_counter: OnceLock<Arc<AtomicU64>>,
+    counters: Arc<Counters>,
     limiter: Mutex<RateLimiter>,
     _token: LivelinessToken,
     _type: PhantomData<fn() -> T>,
@@ -640,7 +652,32 @@ impl<T: Message> Subscriber<T> {
         self.decode_errors.load(Ordering::Relaxed)
     }
 
+    /// How many samples this subscriber has taken from its queue so far (decoded or not).
+    pub fn received(&self) -> u64 {
+        self.received.load(Ordering::Relaxed)
+    }
+
+    /// How many of [`Subscriber::received`] arrived as a zenoh shared-memory buffer (the
+    /// publisher wrote the payload into shared memory, [`SHM_THRESHOLD`] bytes and up, and both
+    /// ends and the router between them have shared memory enabled), rather than as bytes copied
+    /// through the network stack. The same count is the bus counter `shm_received/<topic>` (on
+    /// `diagnostics`), which appears with the first such sample. This is how a test or an
+    /// operator sees that frames really travel through shared memory.
+    pub fn shm_received(&self) -> u64 {
+        self.shm_received.load(Ordering::Relaxed)
+    }
+
     fn decode(&self, sample: &Sample) -> Option<T> {
+        self.received.fetch_add(1, Ordering::Relaxed);
+        if sample.payload().as_shm().is_some() {
+            self.shm_received.fetch_add(1, Ordering::Relaxed);
+            self.shm_counter
+                .get_or_init(|| {
+                    self.counters
+                        .counter(&format!("shm_received/{}", self.topic))
+                })
+                .fetch_add(1, Ordering::Relaxed);
+        }
         match codec::decode::<T>(&sample.payload().to_bytes(), T::TYPE_NAME) {
             Ok(m) => Some(m),
             Err(e) => {

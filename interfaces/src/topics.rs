@@ -60,6 +60,11 @@ pub const NAO_WORLD_MODEL: Topic<crate::msg::nao::NaoWorldModel> = Topic::new("n
 pub const NAO_GAME_STATE: Topic<crate::msg::nao::GameState> = Topic::new("nao/game_state");
 /// Link established / robot not responding / restored.
 pub const NAO_LINK: Topic<crate::msg::nao::NaoLinkEvent> = Topic::new("nao/link");
+/// Coach requests for the controlled robot (the panel), answered and checked by the Executive's
+/// coach machine before they become `nao/command`.
+pub const COACH_REQUEST: Topic<crate::msg::nao::CoachRequest> = Topic::new("coach/request");
+/// The coach machine's memory (last and pending command, last-seen times), for the panel.
+pub const COACH_STATUS: Topic<crate::msg::nao::CoachStatus> = Topic::new("coach/status");
 /// Ground truth of the simulated SPL field.
 pub const SIM_FIELD_TRUTH: Topic<crate::msg::nao::FieldTruth> = Topic::new("sim/field_truth");
 
@@ -118,3 +123,7 @@ pub const EXECUTIVE_CONFIGURATION: Service<
 > = Service::new("executive/configuration");
 /// The readable game log.
 pub const EXECUTIVE_LOG: Topic<crate::msg::executive::GameLog> = Topic::new("executive/log");
+/// A structural change of the DR checked against the game first (seed 001 §V: structural changes
+/// pass through the Executive); accepted ones are forwarded to `dr/propose` and its reply returned.
+pub const EXECUTIVE_PROPOSE: Service<crate::msg::dr::ProposeRequest, crate::msg::dr::ProposeReply> =
+    Service::new("executive/propose");

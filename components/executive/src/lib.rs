@@ -1,1 +1,14 @@
 //! The Executive: a hierarchical concurrent state machine engine and the games' machines.
+//!
+//! - [`engine`]: the statechart engine (no bus, no clock): states, regions, history, timers.
+//! - [`touch`]: Loki's touch-the-ball game (seed 001 §V) on the engine, with its state tree.
+//! - [`settings`]: the settings file.
+//! - [`propose`]: structural DR changes checked against the game.
+//! - [`component`]: the `executive` process on the bus.
+
+pub mod coach;
+pub mod component;
+pub mod engine;
+pub mod propose;
+pub mod settings;
+pub mod touch;

@@ -125,6 +125,8 @@ messages! {
     nao::GameState => "robocog.nao.GameState",
     nao::NaoLinkEvent => "robocog.nao.LinkEvent",
     nao::FieldTruth => "robocog.sim.FieldTruth",
+    nao::CoachRequest => "robocog.nao.CoachRequest",
+    nao::CoachStatus => "robocog.nao.CoachStatus",
     dr::GetNodeRequest => "robocog.dr.GetNodeRequest",
     dr::NodeInfo => "robocog.dr.NodeInfo",
     dr::TransformRequest => "robocog.dr.TransformRequest",

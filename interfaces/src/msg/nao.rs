@@ -248,3 +248,47 @@ pub struct FieldTruth {
     /// 0 INITIAL .. 4 FINISHED.
     pub game_state: u8,
 }
+
+/// A command the coach asks of the controlled robot through the Executive's coach machine
+/// (topic `coach/request`), which answers it, checks it against the game and the world model,
+/// and only then sends it on `nao/command`. The command panel publishes these.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CoachRequest {
+    pub header: Header,
+    /// The command as the coach gave it (`target` for GoToPosition and Turn).
+    pub command: NaoCommand,
+    /// For Kick, Spazza and Pass: whether the coach pointed where the ball should go (`aim`).
+    pub aimed: bool,
+    /// Where the coach wants the ball to go (global, mm), when `aimed`.
+    pub aim: FieldPoint,
+}
+
+/// The coach machine's memory and situation, for the command panel (topic `coach/status`,
+/// on every change and at least once a second). Ages are seconds, `-1` when never.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CoachStatus {
+    pub header: Header,
+    /// The machine's active state (`coach/playing`, `coach/robot_down`, ...).
+    pub state: String,
+    /// GameController state (see [`GameState::state`]), when `game_known`.
+    pub game_state: u8,
+    pub game_known: bool,
+    pub link_up: bool,
+    pub fallen: bool,
+    pub penalised: bool,
+    /// The last command sent to the robot, when `has_last`.
+    pub last_command: NaoCommand,
+    pub has_last: bool,
+    /// Whether the coach believes the last command is done (reached, kicked, seen).
+    pub last_done: bool,
+    /// A command kept for later (refused outside PLAYING, or while down), when `has_pending`.
+    pub pending: NaoCommand,
+    pub has_pending: bool,
+    /// The last answer the robot gave.
+    pub last_answer: String,
+    /// Seconds since any of our robots saw the ball; `-1` when never.
+    pub ball_last_seen_s: f64,
+    /// Seconds since the most recently seen obstacle was seen; `-1` when never.
+    pub obstacle_last_seen_s: f64,
+    pub obstacles_tracked: u32,
+}

@@ -1,0 +1,607 @@
+//! The coach machine (machine `coach`) on the [`crate::engine`], with no bus: messages in,
+//! [`Output`]s out, time passed in.
+//!
+//! # States
+//!
+//! ```text
+//! coach
+//! ├── waiting_for_game   initial: not PLAYING (or no GameController yet); motion refused, kept
+//! ├── playing            PLAYING, robot up, unpenalised, link up: requests decided and sent;
+//! │                      entering it does the kept request, or resumes the interrupted one
+//! ├── robot_down         the robot reports it fell; requests kept; resumes when up
+//! ├── penalised          the GameController penalises the robot; requests kept
+//! └── link_lost          "robot not responding"; requests kept, sent when the link is back
+//! ```
+//!
+//! Where the machine should be is a function of the situation ([`route`]: link, then penalty,
+//! then fall, then the game state); every situation event (`game:<state>`, `robot:fell`,
+//! `robot:up`, `penalty:on`, `penalty:off`, `link:lost`, `link:restored`) moves it there through
+//! guarded transitions, so the diagram shows each way in and out. Requests are the events
+//! `request:<body or head>`, decided by [`super::rules::decide`] in whatever state is active (the
+//! rules know the situation too). Timers: `still_down` and `still_lost` repeat the alarm once.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use interfaces::msg::command::{Command, Game, GameCommand};
+use interfaces::msg::nao::{
+    CoachRequest, CoachStatus, GameState, LinkChange, NaoBody, NaoCommand, NaoLinkEvent,
+    NaoWorldModel,
+};
+use interfaces::msg::speech::Priority;
+
+use super::rules::{self, Ask, Memory, RulesConfig, Situation, Verdict};
+use crate::engine::{ANY_EVENT, Builder, Context, Definition, DefinitionError, Event, Machine, Step};
+
+/// The machine's name (the `machine` field of the Executive's messages).
+pub const MACHINE: &str = "coach";
+
+/// Every state path of the machine.
+pub mod state {
+    pub const COACH: &str = "coach";
+    pub const WAITING: &str = "coach/waiting_for_game";
+    pub const PLAYING: &str = "coach/playing";
+    pub const ROBOT_DOWN: &str = "coach/robot_down";
+    pub const PENALISED: &str = "coach/penalised";
+    pub const LINK_LOST: &str = "coach/link_lost";
+    /// The five modes, in document order.
+    pub const MODES: [&str; 5] = [WAITING, PLAYING, ROBOT_DOWN, PENALISED, LINK_LOST];
+}
+
+/// Sentences of the machine itself (the answers to requests come from [`rules`]).
+pub mod say {
+    pub const FELL: &str = "I fell. I will get up and carry on.";
+    pub const STILL_DOWN: &str = "I am still on the ground.";
+    pub const PENALISED: &str = "I am penalised.";
+    pub const LINK_LOST: &str = "The robot is not responding.";
+    pub const STILL_LOST: &str = "The robot is still not responding.";
+    pub const BACK_UP: &str = "I am up again.";
+    pub const UNPENALISED: &str = "My penalty is over.";
+    pub const LINK_BACK: &str = "The robot is responding again.";
+    pub const PLAY: &str = "We are playing.";
+}
+
+/// The coach settings: the `[coach]` table of the Executive's settings file (every key
+/// optional), documented on [`RulesConfig`].
+pub type CoachSettings = RulesConfig;
+
+/// Where the machine should be in `s`.
+pub fn route(s: &Situation, c: &RulesConfig) -> &'static str {
+    if !s.link_up {
+        state::LINK_LOST
+    } else if s.penalised(c) {
+        state::PENALISED
+    } else if s.fallen(c) {
+        state::ROBOT_DOWN
+    } else if s.playing() {
+        state::PLAYING
+    } else {
+        state::WAITING
+    }
+}
+
+/// The machine's actions (data; [`CoachCtx`] runs them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Act {
+    Say(&'static str, Priority),
+    /// Decide the request carried by the event, answer, send.
+    Decide,
+    /// Remember that the current command was interrupted and why (said when resuming).
+    Interrupted(&'static str),
+    /// Entering PLAYING: do the kept request, or resume the interrupted command.
+    Resume,
+    /// Log why the machine waits.
+    Waiting,
+}
+
+/// What an event carries.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum Input {
+    #[default]
+    None,
+    Request(Ask),
+}
+
+/// A line of the game log (`executive/log`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogLine {
+    /// `state`, `said`, `heard`, `sent`, `refused`, `anomaly`.
+    pub kind: &'static str,
+    pub text: String,
+}
+
+/// What the machine asks of the rest of the system, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// `speech/say`.
+    Say { text: String, priority: Priority },
+    /// `nao/command`.
+    Command(NaoCommand),
+    /// `executive/log`.
+    Log(LogLine),
+}
+
+/// The machine's context: the situation, the memory, the outputs.
+#[derive(Debug)]
+pub struct CoachCtx {
+    settings: Arc<RulesConfig>,
+    situation: Situation,
+    memory: Memory,
+    /// Set by an interruption; said and cleared when the command is resumed.
+    interrupted: Option<&'static str>,
+    last_answer: String,
+    now_s: f64,
+    outputs: Vec<Output>,
+}
+
+impl CoachCtx {
+    fn log(&mut self, kind: &'static str, text: String) {
+        self.outputs.push(Output::Log(LogLine { kind, text }));
+    }
+
+    fn say(&mut self, text: String, priority: Priority) {
+        self.log("said", text.clone());
+        self.last_answer = text.clone();
+        self.outputs.push(Output::Say { text, priority });
+    }
+
+    /// Decides `ask`, says the answer, then sends the command (or keeps the request).
+    fn decide(&mut self, ask: &Ask, preface: Option<&str>) {
+        let rules = &*self.settings;
+        let verdict = rules::decide(ask, &self.situation, rules);
+        let mut text = verdict.say().to_string();
+        if let Some(p) = preface {
+            text = format!("{p} {text}");
+        }
+        match &verdict {
+            Verdict::Execute { command, .. } | Verdict::Replace { command, .. } => {
+                self.say(text, Priority::Normal);
+                if let Verdict::Replace { asked, .. } = &verdict {
+                    self.log(
+                        "replaced",
+                        format!("{asked:?} from {} became {:?}", ask.source, command.body),
+                    );
+                }
+                self.log(
+                    "sent",
+                    format!(
+                        "{:?} head {:?} target ({:.0}, {:.0}) mm",
+                        command.body, command.head, command.target.x_mm, command.target.y_mm
+                    ),
+                );
+                self.memory.sent(ask, command, self.now_s);
+                if ask.is_motion() || ask.body == NaoBody::Stop {
+                    // A new body command replaces whatever was kept.
+                    self.memory.pending = None;
+                }
+                self.outputs.push(Output::Command(command.clone()));
+            }
+            Verdict::Refuse { reason, keep, .. } => {
+                self.say(text, Priority::High);
+                self.log(
+                    "refused",
+                    format!(
+                        "{:?} from {}: {reason:?}{}",
+                        ask.body,
+                        ask.source,
+                        if *keep { ", kept for later" } else { "" }
+                    ),
+                );
+                if *keep {
+                    self.memory.pending = Some(ask.clone());
+                }
+            }
+        }
+    }
+
+    /// The status for the panel.
+    pub fn status(&self, active: &str) -> CoachStatus {
+        let c = &*self.settings;
+        let s = &self.situation;
+        let (has_last, last_command) = match &self.memory.last {
+            Some((_, cmd)) => (true, cmd.clone()),
+            None => (false, NaoCommand::default()),
+        };
+        let (has_pending, pending) = match &self.memory.pending {
+            Some(a) => (
+                true,
+                NaoCommand {
+                    body: a.body,
+                    head: a.head,
+                    strategy: a.strategy,
+                    target: a.target.unwrap_or_default(),
+                    source: a.source.clone(),
+                    ..Default::default()
+                },
+            ),
+            None => (false, NaoCommand::default()),
+        };
+        CoachStatus {
+            state: active.to_string(),
+            game_state: s.game.as_ref().map_or(0, |g| g.state),
+            game_known: s.game.is_some(),
+            link_up: s.link_up,
+            fallen: s.fallen(c),
+            penalised: s.penalised(c),
+            last_command,
+            has_last,
+            last_done: self.memory.last_done,
+            pending,
+            has_pending,
+            last_answer: self.last_answer.clone(),
+            ball_last_seen_s: self.memory.ball_age(self.now_s).unwrap_or(-1.0),
+            obstacle_last_seen_s: self.memory.obstacle_age(self.now_s).unwrap_or(-1.0),
+            obstacles_tracked: self.memory.obstacles_tracked,
+            ..Default::default()
+        }
+    }
+}
+
+impl Context<Act, Input> for CoachCtx {
+    fn run(&mut self, action: &Act, event: &Event<Input>) {
+        match *action {
+            Act::Say(text, priority) => self.say(text.to_string(), priority),
+            Act::Decide => {
+                if let Input::Request(ask) = &event.payload {
+                    self.decide(ask, None);
+                }
+            }
+            Act::Interrupted(why) => {
+                // The first cause is what the coach hears when the robot carries on.
+                self.interrupted.get_or_insert(why);
+            }
+            Act::Resume => {
+                let interrupted = self.interrupted.take();
+                if let Some(ask) = self.memory.pending.take() {
+                    let preface = interrupted.unwrap_or(say::PLAY);
+                    self.decide(&ask, Some(preface));
+                } else if let Some(why) = interrupted {
+                    match self.memory.to_resume() {
+                        Some(ask) if ask.body != NaoBody::Stop => {
+                            self.log("resumed", format!("{:?} after: {why}", ask.body));
+                            self.decide(&ask, Some(&format!("{why} Resuming.")));
+                        }
+                        _ => self.say(why.to_string(), Priority::Normal),
+                    }
+                }
+            }
+            Act::Waiting => {
+                let why = match &self.situation.game {
+                    None => "no GameController state yet".to_string(),
+                    Some(g) => format!("game state {}", g.state),
+                };
+                self.log("state", format!("waiting for PLAYING ({why})"));
+            }
+        }
+    }
+}
+
+type Def = Definition<CoachCtx, Input, Act>;
+
+fn is_request(e: &Event<Input>) -> bool {
+    e.name.starts_with("request:")
+}
+
+/// The coach machine (see the module docs for the states).
+pub fn definition(settings: &CoachSettings) -> Result<Def, DefinitionError> {
+    use state::*;
+    let mut b = Builder::<CoachCtx, Input, Act>::new(MACHINE);
+    b.root_initial("coach");
+    b.compound(COACH, "waiting_for_game");
+    b.atomic(WAITING).entry(Act::Waiting);
+    b.atomic(PLAYING).entry(Act::Resume);
+    b.atomic(ROBOT_DOWN)
+        .entry(Act::Say(say::FELL, Priority::High))
+        .entry(Act::Interrupted(say::BACK_UP));
+    b.atomic(PENALISED)
+        .entry(Act::Say(say::PENALISED, Priority::High))
+        .entry(Act::Interrupted(say::UNPENALISED));
+    b.atomic(LINK_LOST)
+        .entry(Act::Say(say::LINK_LOST, Priority::Urgent))
+        .entry(Act::Interrupted(say::LINK_BACK));
+    // Every situation event moves the machine where the situation says, from any mode.
+    for from in MODES {
+        for to in MODES {
+            if from == to {
+                continue;
+            }
+            let leaf = to.rsplit('/').next().unwrap_or(to);
+            b.on(from, ANY_EVENT)
+                .guard(&format!("route = {leaf}"), move |c: &CoachCtx, e| {
+                    !is_request(e) && route(&c.situation, &c.settings) == to
+                })
+                .to(to);
+        }
+    }
+    b.on(COACH, ANY_EVENT)
+        .guard("request", |_, e| is_request(e))
+        .action(Act::Decide);
+    let secs = |s: f64| Duration::from_secs_f64(s.max(0.001));
+    b.after(ROBOT_DOWN, secs(settings.still_down_s), "still_down")
+        .action(Act::Say(say::STILL_DOWN, Priority::High));
+    b.after(LINK_LOST, secs(settings.still_lost_s), "still_lost")
+        .action(Act::Say(say::STILL_LOST, Priority::Urgent));
+    b.build()
+}
+
+/// What one input did: the machine's steps (for `executive/transitions`) and the outputs.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Outcome {
+    pub steps: Vec<Step<Act>>,
+    pub outputs: Vec<Output>,
+}
+
+impl Outcome {
+    /// The texts said, in order.
+    pub fn said(&self) -> Vec<&str> {
+        self.outputs
+            .iter()
+            .filter_map(|o| match o {
+                Output::Say { text, .. } => Some(text.as_str()),
+                _ => None,
+            })
+            .collect()
+    }
+    /// The commands sent, in order.
+    pub fn commands(&self) -> Vec<&NaoCommand> {
+        self.outputs
+            .iter()
+            .filter_map(|o| match o {
+                Output::Command(c) => Some(c),
+                _ => None,
+            })
+            .collect()
+    }
+    fn extend(&mut self, other: Outcome) {
+        self.steps.extend(other.steps);
+        self.outputs.extend(other.outputs);
+    }
+}
+
+/// The game: the machine, its context, and the conversion of bus messages into events.
+/// `now` is the caller's clock (time since its epoch); every input first fires due timers.
+#[derive(Debug)]
+pub struct CoachGame {
+    machine: Machine<CoachCtx, Input, Act>,
+    ctx: CoachCtx,
+}
+
+impl CoachGame {
+    /// A coach with `settings`, not started. The link is taken as up until told otherwise.
+    pub fn new(settings: CoachSettings) -> Result<CoachGame, DefinitionError> {
+        let def = Arc::new(definition(&settings)?);
+        Ok(CoachGame {
+            machine: Machine::new(def),
+            ctx: CoachCtx {
+                settings: Arc::new(settings),
+                situation: Situation {
+                    link_up: true,
+                    ..Default::default()
+                },
+                memory: Memory::default(),
+                interrupted: None,
+                last_answer: String::new(),
+                now_s: 0.0,
+                outputs: Vec::new(),
+            },
+        })
+    }
+
+    /// The machine (configuration, counters, definition).
+    pub fn machine(&self) -> &Machine<CoachCtx, Input, Act> {
+        &self.machine
+    }
+    /// The next timer deadline, for the caller's sleep.
+    pub fn next_deadline(&self) -> Option<Duration> {
+        self.machine.next_deadline()
+    }
+    /// The active mode (`coach/playing`, ...).
+    pub fn mode(&self) -> String {
+        self.machine.active_leaves().join(" + ")
+    }
+    /// The status for the panel at `now`.
+    pub fn status(&mut self, now: Duration) -> CoachStatus {
+        self.ctx.now_s = now.as_secs_f64();
+        self.ctx.status(&self.mode())
+    }
+    /// The memory (last and pending command, last-seen times).
+    pub fn memory(&self) -> &Memory {
+        &self.ctx.memory
+    }
+
+    /// Enters the initial state.
+    pub fn start(&mut self, now: Duration) -> Outcome {
+        self.ctx.now_s = now.as_secs_f64();
+        let mark = self.ctx.outputs.len();
+        let step = self.machine.start(&mut self.ctx, now);
+        self.finish_step(step, mark)
+    }
+
+    fn finish_step(&mut self, step: Step<Act>, mark: usize) -> Outcome {
+        if !step.ignored && !(step.exited.is_empty() && step.entered.is_empty()) {
+            let mut text = format!("{}:", step.event);
+            if !step.exited.is_empty() {
+                text.push_str(&format!(" left {}", step.exited.join(", ")));
+            }
+            if !step.entered.is_empty() {
+                text.push_str(&format!(" entered {}", step.entered.join(", ")));
+            }
+            text.push_str(&format!(" -> now {}", step.active.join(" + ")));
+            self.ctx.outputs.insert(
+                mark.min(self.ctx.outputs.len()),
+                Output::Log(LogLine { kind: "state", text }),
+            );
+        }
+        Outcome {
+            steps: vec![step],
+            outputs: std::mem::take(&mut self.ctx.outputs),
+        }
+    }
+
+    fn send(&mut self, name: &str, payload: Input, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let mark = self.ctx.outputs.len();
+        let step = self
+            .machine
+            .send(&mut self.ctx, Event::new(name, payload), now);
+        out.extend(self.finish_step(step, mark));
+        out
+    }
+
+    /// Fires the timers due at `now`.
+    pub fn advance(&mut self, now: Duration) -> Outcome {
+        let mut out = Outcome::default();
+        loop {
+            match self.machine.next_deadline() {
+                Some(d) if d <= now => {
+                    self.ctx.now_s = d.as_secs_f64();
+                    let mark = self.ctx.outputs.len();
+                    for step in self.machine.advance(&mut self.ctx, d) {
+                        let o = self.finish_step(step, mark);
+                        out.extend(o);
+                    }
+                }
+                _ => break,
+            }
+        }
+        self.machine.advance(&mut self.ctx, now);
+        self.ctx.now_s = now.as_secs_f64();
+        out
+    }
+
+    /// Sends a situation event when the situation now routes elsewhere than the active mode.
+    fn reroute(&mut self, cause: &str, now: Duration) -> Outcome {
+        let want = route(&self.ctx.situation, &*self.ctx.settings);
+        if self.machine.is_active(want) {
+            return self.advance(now);
+        }
+        self.send(cause, Input::None, now)
+    }
+
+    /// A request made from the panel (`coach/request`). A GoToPosition target is remembered as
+    /// the clicked point (voice "go to position" goes there next).
+    pub fn request(&mut self, r: &CoachRequest, now: Duration) -> Outcome {
+        let ask = Ask::from_panel(r);
+        if ask.body == NaoBody::GoToPosition {
+            self.ctx.memory.clicked = ask.target;
+        }
+        self.ask(ask, now)
+    }
+
+    /// A command from `game/command` (voice after the dialog, or a panel button). Other games'
+    /// commands and the dialog's yes/no are logged and ignored.
+    pub fn command(&mut self, cmd: &GameCommand, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let heard = format!(
+            "{:?} \"{}\" ({:?}, confidence {:.2})",
+            cmd.command, cmd.text, cmd.source, cmd.confidence
+        );
+        self.ctx.log("heard", heard);
+        let ask = (cmd.game == Game::Coach && cmd.command != Command::None)
+            .then(|| {
+                Ask::from_voice(
+                    cmd.command,
+                    self.ctx.memory.clicked,
+                    self.ctx.situation.world.as_ref(),
+                    &*self.ctx.settings,
+                )
+            })
+            .flatten();
+        match ask {
+            Some(mut a) => {
+                if cmd.source == interfaces::msg::command::CommandSource::Panel {
+                    a.source = "panel".into();
+                }
+                out.extend(self.ask(a, now));
+            }
+            None => {
+                self.ctx.log(
+                    "anomaly",
+                    format!("{:?} of {:?} is no robot command: ignored", cmd.command, cmd.game),
+                );
+                out.outputs.append(&mut self.ctx.outputs);
+            }
+        }
+        out
+    }
+
+    fn ask(&mut self, ask: Ask, now: Duration) -> Outcome {
+        let name = if ask.body != NaoBody::Keep {
+            format!("request:{}", snake(&format!("{:?}", ask.body)))
+        } else {
+            format!("request:{}", snake(&format!("{:?}", ask.head)))
+        };
+        self.send(&name, Input::Request(ask), now)
+    }
+
+    /// A world model (`nao/world_model`): memory, and `robot:fell` / `robot:up`.
+    pub fn world_model(&mut self, w: &NaoWorldModel, now: Duration) -> Outcome {
+        let c = (*self.ctx.settings).clone();
+        let was = self.ctx.situation.fallen(&c);
+        self.ctx.memory.observe(w, now.as_secs_f64(), &c);
+        self.ctx.situation.world = Some(w.clone());
+        let is = self.ctx.situation.fallen(&c);
+        match (was, is) {
+            (false, true) => self.reroute("robot:fell", now),
+            (true, false) => self.reroute("robot:up", now),
+            _ => self.advance(now),
+        }
+    }
+
+    /// A GameController state (`nao/game_state`): `game:<state>`, `penalty:on` / `penalty:off`.
+    pub fn game_state(&mut self, g: &GameState, now: Duration) -> Outcome {
+        let c = (*self.ctx.settings).clone();
+        let was_pen = self.ctx.situation.penalised(&c);
+        let was_state = self.ctx.situation.game.as_ref().map(|g| g.state);
+        self.ctx.situation.game = Some(g.clone());
+        let pen = self.ctx.situation.penalised(&c);
+        if pen != was_pen {
+            return self.reroute(if pen { "penalty:on" } else { "penalty:off" }, now);
+        }
+        if was_state != Some(g.state) {
+            let name = match g.state {
+                0 => "game:initial",
+                1 => "game:ready",
+                2 => "game:set",
+                3 => "game:playing",
+                4 => "game:finished",
+                5 => "game:standby",
+                _ => "game:unknown",
+            };
+            return self.reroute(name, now);
+        }
+        self.advance(now)
+    }
+
+    /// A link event (`nao/link`) about the controlled robot: `link:lost` / `link:restored`.
+    pub fn link(&mut self, e: &NaoLinkEvent, now: Duration) -> Outcome {
+        if e.player_number != self.ctx.settings.controlled_player {
+            return self.advance(now);
+        }
+        let up = e.change != LinkChange::RobotNotResponding;
+        if up == self.ctx.situation.link_up {
+            return self.advance(now);
+        }
+        self.ctx.situation.link_up = up;
+        self.reroute(if up { "link:restored" } else { "link:lost" }, now)
+    }
+}
+
+/// `GoToBallAndDribble` -> `go_to_ball_and_dribble`.
+fn snake(s: &str) -> String {
+    let mut out = String::new();
+    for (i, ch) in s.chars().enumerate() {
+        if ch.is_uppercase() {
+            if i > 0 {
+                out.push('_');
+            }
+            out.extend(ch.to_lowercase());
+        } else {
+            out.push(ch);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,176 @@
+//! The Nao coach game (seed 000 §1.2, §3.1.3-3.1.5) in the Executive: every coach command is
+//! answered before it is executed, checked against the world model and the game's rules, and
+//! remembered so it resumes after a fall, a penalty or a lost link.
+//!
+//! - [`rules`]: the decisions as a pure library (no bus, no clock).
+//! - [`machine`]: the `coach` machine on the Executive's engine (waiting_for_game, playing,
+//!   robot_down, penalised, link_lost), driven by bus messages, time passed in.
+//! - [`run`]: the process side.
+//!
+//! # On the bus
+//!
+//! In: `game/command` (coach commands by voice through `speech_recognition --game coach` and
+//! `dialogs`, or panel buttons), `coach/request` (panel commands with targets and aims),
+//! `nao/world_model`, `nao/game_state`, `nao/link`. Out: `nao/command` (source `executive`, to
+//! `nao_bridge`), `speech/say` (every answer, before the command is sent), `executive/transitions`
+//! (machine `coach`), `executive/log`, `coach/status` (memory and last-seen times, on every
+//! change and once a second).
+
+pub mod machine;
+pub mod rules;
+
+pub use machine::{CoachGame, CoachSettings, MACHINE, Outcome, Output};
+
+use std::time::{Duration, Instant};
+
+use interfaces::msg::executive::{GameLog, StateTransition};
+use interfaces::msg::speech::SayRequest;
+use interfaces::node::Interface;
+use interfaces::{Bus, Shutdown, topics};
+
+/// Adds the coach's topics to the Executive's interface.
+pub fn interface(i: Interface) -> Interface {
+    i.subscribes(&topics::GAME_COMMAND)
+        .subscribes(&topics::COACH_REQUEST)
+        .subscribes(&topics::NAO_WORLD_MODEL)
+        .subscribes(&topics::NAO_GAME_STATE)
+        .subscribes(&topics::NAO_LINK)
+        .publishes(&topics::NAO_COMMAND)
+        .publishes(&topics::SPEECH_SAY)
+        .publishes(&topics::EXECUTIVE_TRANSITIONS)
+        .publishes(&topics::EXECUTIVE_LOG)
+        .publishes(&topics::COACH_STATUS)
+}
+
+/// Runs the coach machine on the bus until shutdown. Time is the process's monotonic clock
+/// since start.
+pub async fn run(bus: Bus, settings: CoachSettings, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let mut game = CoachGame::new(settings)?;
+    let commands = bus.subscriber(&topics::GAME_COMMAND).await?;
+    let requests = bus.subscriber(&topics::COACH_REQUEST).await?;
+    let worlds = bus.subscriber(&topics::NAO_WORLD_MODEL).await?;
+    let states = bus.subscriber(&topics::NAO_GAME_STATE).await?;
+    let links = bus.subscriber(&topics::NAO_LINK).await?;
+    let out = Publishers {
+        nao: bus.publisher(&topics::NAO_COMMAND).await?,
+        say: bus.publisher(&topics::SPEECH_SAY).await?,
+        transitions: bus.publisher(&topics::EXECUTIVE_TRANSITIONS).await?,
+        log: bus.publisher(&topics::EXECUTIVE_LOG).await?,
+        status: bus.publisher(&topics::COACH_STATUS).await?,
+        counters: bus.counters().clone(),
+        say_id: 0,
+    };
+    let mut out = out;
+    let started = Instant::now();
+    let now = move || started.elapsed();
+    tracing::info!(
+        "coach: machine `{MACHINE}` with states {:?}",
+        game.machine().definition().state_paths()
+    );
+    let o = game.start(now());
+    out.emit(o).await?;
+    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    status_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut last_status = None;
+    loop {
+        // Wake for the machine's next timer (at least once a second for the status).
+        let sleep_for = game
+            .next_deadline()
+            .map_or(Duration::from_secs(1), |d| d.saturating_sub(now()))
+            .min(Duration::from_secs(1));
+        let (outcome, changed) = tokio::select! {
+            _ = shutdown.wait() => return Ok(()),
+            c = commands.recv() => (game.command(&c?, now()), true),
+            r = requests.recv() => (game.request(&r?, now()), true),
+            w = worlds.recv() => (game.world_model(&w?, now()), false),
+            g = states.recv() => (game.game_state(&g?, now()), false),
+            l = links.recv() => (game.link(&l?, now()), true),
+            _ = tokio::time::sleep(sleep_for) => (game.advance(now()), false),
+            _ = status_tick.tick() => (Outcome::default(), true),
+        };
+        let stepped = outcome.steps.iter().any(|s| !s.ignored) || !outcome.outputs.is_empty();
+        out.emit(outcome).await?;
+        let mut st = game.status(now());
+        // Publish on change (ages aside) and on the tick.
+        let key = {
+            let mut k = st.clone();
+            k.ball_last_seen_s = 0.0;
+            k.obstacle_last_seen_s = 0.0;
+            k
+        };
+        if changed || stepped || last_status.as_ref() != Some(&key) {
+            out.status.publish(&mut st).await?;
+            last_status = Some(key);
+        }
+    }
+}
+
+struct Publishers {
+    nao: interfaces::Publisher<interfaces::msg::nao::NaoCommand>,
+    say: interfaces::Publisher<SayRequest>,
+    transitions: interfaces::Publisher<StateTransition>,
+    log: interfaces::Publisher<GameLog>,
+    status: interfaces::Publisher<interfaces::msg::nao::CoachStatus>,
+    counters: std::sync::Arc<interfaces::bus::Counters>,
+    say_id: u64,
+}
+
+impl Publishers {
+    /// Publishes an outcome: the steps first, then the outputs in order (so an answer is on
+    /// `speech/say` before its command is on `nao/command`).
+    async fn emit(&mut self, o: Outcome) -> anyhow::Result<()> {
+        for s in o.steps.iter().filter(|s| !s.ignored) {
+            let mut t = StateTransition {
+                machine: MACHINE.into(),
+                event: s.event.clone(),
+                exited: s.exited.clone(),
+                entered: s.entered.clone(),
+                active: s.active.clone(),
+                step: s.step,
+                ..Default::default()
+            };
+            self.transitions.publish(&mut t).await?;
+        }
+        for output in o.outputs {
+            match output {
+                Output::Say { text, priority } => {
+                    self.say_id += 1;
+                    tracing::info!("says: {text}");
+                    let mut r = SayRequest {
+                        id: self.say_id,
+                        text,
+                        priority,
+                        ..Default::default()
+                    };
+                    self.say.publish(&mut r).await?;
+                }
+                Output::Command(mut c) => {
+                    tracing::info!(
+                        "command to the robot: {:?} head {:?} target ({:.0}, {:.0})",
+                        c.body,
+                        c.head,
+                        c.target.x_mm,
+                        c.target.y_mm
+                    );
+                    self.counters.incr("commands_sent");
+                    self.nao.publish(&mut c).await?;
+                }
+                Output::Log(l) => {
+                    if l.kind == "refused" || l.kind == "anomaly" {
+                        self.counters.incr(&format!("coach/{}", l.kind));
+                    }
+                    tracing::info!("[{}] {}", l.kind, l.text);
+                    let mut g = GameLog {
+                        machine: MACHINE.into(),
+                        kind: l.kind.into(),
+                        text: l.text,
+                        distance_m: -1.0,
+                        ..Default::default()
+                    };
+                    self.log.publish(&mut g).await?;
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,304 @@
+//! The Executive's settings file (TOML), every key optional.
+//!
+//! Units: metres, seconds, radians, degrees for hues. Points are in the deep representation's
+//! `world` frame (z up; in the default scene the robot stands at the origin facing +x and the
+//! table top is at z = 0.75 m).
+//!
+//! ```toml
+//! [touch]
+//! arm = "left_arm_7"
+//! courtesy_delay_s = 5.0
+//! ball_hue_deg = 52.0
+//! arm_rest = [{ joint = "left_elbow", position = -0.2 }]
+//!
+//! [propose]
+//! protected = ["world", "ball", "base_footprint"]
+//! ```
+
+use std::path::Path;
+
+use serde::Deserialize;
+
+/// Why the settings could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingsError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Parse {
+        path: String,
+        source: toml::de::Error,
+    },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// Everything in the settings file.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Settings {
+    pub touch: TouchSettings,
+    /// The coach game's settings (see [`crate::coach::CoachSettings`]).
+    pub coach: crate::coach::CoachSettings,
+    pub propose: ProposeSettings,
+}
+
+impl Settings {
+    /// Reads and checks a settings file.
+    pub fn load(path: &Path) -> Result<Settings, SettingsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SettingsError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Settings::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses and checks settings text (`origin` names it in errors).
+    pub fn parse(text: &str, origin: &str) -> Result<Settings, SettingsError> {
+        let s: Settings = toml::from_str(text).map_err(|source| SettingsError::Parse {
+            path: origin.to_string(),
+            source,
+        })?;
+        s.touch.check()?;
+        Ok(s)
+    }
+}
+
+/// One joint at a rest position.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointRest {
+    pub joint: String,
+    /// rad (or m for a prismatic joint).
+    pub position: f64,
+}
+
+/// `joint_motor`'s rest posture (its `home` module): arms hanging beside the body, upper arms
+/// 0.10 rad away from it, forearms 0.15 rad forward, head 0.30 rad down; every other joint 0.
+const REST_POSTURE: &[(&str, f64)] = &[
+    ("left_shoulder_roll", 0.10),
+    ("right_shoulder_roll", -0.10),
+    ("left_elbow", -0.15),
+    ("right_elbow", -0.15),
+    ("neck_pitch", 0.30),
+];
+
+fn rest(joints: &[&str]) -> Vec<JointRest> {
+    joints
+        .iter()
+        .map(|j| JointRest {
+            joint: j.to_string(),
+            position: REST_POSTURE
+                .iter()
+                .find(|(n, _)| n == j)
+                .map_or(0.0, |(_, q)| *q),
+        })
+        .collect()
+}
+
+/// The joints of the default arm (`left_arm_7`); at rest as `joint_motor --home rest` puts them
+/// (inside every URDF limit: the elbow's range is [-2.4, 0]).
+pub const LEFT_ARM_JOINTS: [&str; 7] = [
+    "left_shoulder_pitch",
+    "left_shoulder_roll",
+    "left_shoulder_yaw",
+    "left_elbow",
+    "left_forearm_roll",
+    "left_wrist_pitch",
+    "left_wrist_roll",
+];
+
+/// The neck's joints; at rest the head looks ahead, 0.30 rad down.
+pub const NECK_JOINTS: [&str; 4] = ["neck_rotation", "neck_pitch", "neck_roll", "neck_yaw"];
+
+/// The touch-the-ball game's settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TouchSettings {
+    /// The body part that touches (`left_arm_7`, `left_arm_11`, ...).
+    pub arm: String,
+    /// The body part that gazes (and searches).
+    pub neck: String,
+    /// The client name on reach and joint goals.
+    pub client: String,
+    /// The ball's colour and size, sent to the tracker.
+    pub ball_hue_deg: f32,
+    pub ball_saturation: f32,
+    pub ball_diameter_m: f64,
+    /// The hand's target in the ball's frame (m): the hand centre on the ball's surface on the
+    /// robot's side.
+    pub touch_offset_m: [f64; 3],
+    /// Reach tolerance (m).
+    pub touch_tolerance_m: f64,
+    /// After the hand reached the ball, how long the robot waits for "you touched it" before
+    /// going home anyway (s).
+    pub courtesy_delay_s: f64,
+    /// How long the head dwells on each scan point while searching (s).
+    pub scan_dwell_s: f64,
+    /// The search pattern: gaze points in `world` (m), visited in order, then again.
+    pub scan_points: Vec<[f64; 3]>,
+    /// The ball moved this far (m) from where it was last reported: the game says it follows it.
+    pub ball_moved_m: f64,
+    /// How long the arm takes to go home before another touch is a fresh start (s).
+    pub homing_s: f64,
+    /// The arm's rest posture (JointGoal on `body/joint_goal`).
+    pub arm_rest: Vec<JointRest>,
+    /// The head's rest posture when the game ends.
+    pub head_rest: Vec<JointRest>,
+    /// Speed of the moves to rest (rad/s).
+    pub rest_max_speed: f64,
+    /// Priority of the rest joint goals.
+    pub rest_priority: u8,
+}
+
+/// The default search pattern: where a person shows a ball to a seated robot, in front of it at
+/// 0.7 m and within the neck's reach (the head camera is about 1.5 m high and the neck pitches
+/// down at most 0.6 rad): the centre first, then two rows at 1.35 m and 1.15 m high sweeping
+/// -0.4..0.4 m sideways in alternate directions.
+pub fn default_scan_points() -> Vec<[f64; 3]> {
+    let mut v = vec![[0.6, 0.0, 1.3]];
+    for (row, z) in [1.35, 1.15].into_iter().enumerate() {
+        let ys = [-0.4, -0.2, 0.0, 0.2, 0.4];
+        let ordered: Vec<f64> = if row % 2 == 0 {
+            ys.to_vec()
+        } else {
+            ys.iter().rev().copied().collect()
+        };
+        v.extend(ordered.into_iter().map(|y| [0.7, y, z]));
+    }
+    v
+}
+
+impl Default for TouchSettings {
+    fn default() -> Self {
+        TouchSettings {
+            arm: "left_arm_7".into(),
+            neck: "neck".into(),
+            client: "executive".into(),
+            ball_hue_deg: 52.0,
+            ball_saturation: 0.85,
+            ball_diameter_m: 0.07,
+            touch_offset_m: [-0.03, 0.0, 0.0],
+            touch_tolerance_m: 0.02,
+            courtesy_delay_s: 5.0,
+            scan_dwell_s: 1.5,
+            scan_points: default_scan_points(),
+            ball_moved_m: 0.05,
+            homing_s: 2.0,
+            arm_rest: rest(&LEFT_ARM_JOINTS),
+            head_rest: rest(&NECK_JOINTS),
+            rest_max_speed: 0.6,
+            rest_priority: 10,
+        }
+    }
+}
+
+impl TouchSettings {
+    /// Checks ranges (positive durations and sizes, a hue in [0, 360), at least one scan point).
+    pub fn check(&self) -> Result<(), SettingsError> {
+        let bad = |m: String| Err(SettingsError::Invalid(format!("[touch] {m}")));
+        for (k, v) in [
+            ("courtesy_delay_s", self.courtesy_delay_s),
+            ("scan_dwell_s", self.scan_dwell_s),
+            ("homing_s", self.homing_s),
+            ("ball_diameter_m", self.ball_diameter_m),
+            ("ball_moved_m", self.ball_moved_m),
+            ("touch_tolerance_m", self.touch_tolerance_m),
+            ("rest_max_speed", self.rest_max_speed),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{k} must be a positive number, not {v}"));
+            }
+        }
+        if !(0.0..360.0).contains(&self.ball_hue_deg) {
+            return bad(format!(
+                "ball_hue_deg {} is outside [0, 360)",
+                self.ball_hue_deg
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.ball_saturation) {
+            return bad(format!(
+                "ball_saturation {} is outside [0, 1]",
+                self.ball_saturation
+            ));
+        }
+        if self.scan_points.is_empty() {
+            return bad("scan_points is empty".into());
+        }
+        let finite = |p: &[f64]| p.iter().all(|x| x.is_finite());
+        if !self.scan_points.iter().all(|p| finite(p)) || !finite(&self.touch_offset_m) {
+            return bad("a point has a non-finite coordinate".into());
+        }
+        for r in self.arm_rest.iter().chain(&self.head_rest) {
+            if !r.position.is_finite() {
+                return bad(format!("rest position of {} is not finite", r.joint));
+            }
+        }
+        if self.arm.is_empty() || self.neck.is_empty() || self.client.is_empty() {
+            return bad("arm, neck and client must not be empty".into());
+        }
+        Ok(())
+    }
+}
+
+/// What `executive/propose` protects while a game runs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProposeSettings {
+    /// Nodes that cannot be removed or moved while a game runs (the robot's root, the ball).
+    pub protected: Vec<String>,
+    /// Node types of which one node at most may exist while a game runs.
+    pub unique_types: Vec<String>,
+}
+
+impl Default for ProposeSettings {
+    fn default() -> Self {
+        ProposeSettings {
+            protected: ["world", "base_footprint", "ball"]
+                .map(String::from)
+                .to_vec(),
+            unique_types: vec!["ball".into()],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_file_gives_the_defaults() {
+        let s = Settings::parse("", "test").unwrap();
+        assert_eq!(s.touch.arm, "left_arm_7");
+        assert_eq!(s.touch.courtesy_delay_s, 5.0);
+        assert_eq!(s.touch.arm_rest.len(), 7);
+        assert_eq!(s.touch.scan_points.len(), 11);
+        assert!(
+            s.touch.scan_points.iter().all(|p| (1.1..=1.4).contains(&p[2])
+                && (0.5..=0.8).contains(&p[0])
+                && (-0.4..=0.4).contains(&p[1]))
+        );
+    }
+
+    #[test]
+    fn keys_override_and_typos_and_bad_values_are_errors() {
+        let s = Settings::parse(
+            "[touch]\ncourtesy_delay_s = 2.5\narm_rest = [{ joint = \"left_elbow\", position = -0.2 }]\n",
+            "test",
+        )
+        .unwrap();
+        assert_eq!(s.touch.courtesy_delay_s, 2.5);
+        assert_eq!(s.touch.arm_rest.len(), 1);
+        let e = Settings::parse("[touch]\ncourtesy_delay = 2.5\n", "f.toml").unwrap_err();
+        assert!(e.to_string().contains("courtesy_delay"), "{e}");
+        let e = Settings::parse("[touch]\ncourtesy_delay_s = -1.0\n", "f.toml").unwrap_err();
+        assert!(e.to_string().contains("courtesy_delay_s"), "{e}");
+        assert!(Settings::parse("[touch]\nscan_points = []\n", "f").is_err());
+        // The coach's table belongs to the same file.
+        assert!(Settings::parse("[coach]\n[propose]\nprotected = []\n", "f").is_ok());
+        assert!(Settings::parse("[touch]\nball_hue_deg = 400.0\n", "f").is_err());
+    }
+}

@@ -1,0 +1,847 @@
+//! Loki's "touch the ball" game (seed 001 §V) as a statechart on the [`crate::engine`], with no
+//! bus: messages in, [`Output`]s out, time passed in.
+//!
+//! # The rules (seed 001 §V)
+//!
+//! The person shows the robot a ball and asks it to touch it with its hand; she moves the ball,
+//! decides when the game starts and ends, when the robot must touch, and tells it when it did
+//! (then the arm goes home). Commands arrive at any time; the robot speaks at every transition
+//! and anomaly, and explains a command that makes no sense now.
+//!
+//! # States (machine `touch_the_ball`)
+//!
+//! ```text
+//! game                          the game is on (Stop/Quit from anywhere -> finished)
+//! ├── waiting                   initial: waiting for the person ("hello", "let's play")
+//! └── playing                   PARALLEL: the two regions run together
+//!     ├── eyes                  what the head does
+//!     │   ├── idle              initial: no target yet
+//!     │   ├── searching         target sent to the tracker; the neck sweeps the table
+//!     │   │   └── looking       one gaze point (after scan_dwell_s: the next one)
+//!     │   ├── tracking          the ball is seen; the neck follows it (gaze, frame `ball`)
+//!     │   └── out_of_sight      the ball left the image ("the ball is out of my sight")
+//!     └── arm                   what the arm does
+//!         ├── resting           initial: arm at rest
+//!         ├── reaching          reach goal for the hand at the ball, following it
+//!         │   ├── moving        initial: on the way
+//!         │   ├── touching      reached; after courtesy_delay_s -> homing
+//!         │   └── following     the ball moved while reaching: re-reaching
+//!         └── homing            reach cancelled, arm to its rest posture (homing_s)
+//! finished                      final: everything cancelled, robot at rest
+//! ```
+//!
+//! State names on the bus are these paths (`game/playing/arm/reaching/touching`).
+//!
+//! # Events
+//!
+//! `command:<name>` (greet, play, scan_ball, track_ball, touch_ball, you_touched_it, stop, quit),
+//! `ball:<kind>` (detected, out_of_view, lost, detection_timed_out) from `vision/ball_events`,
+//! `ball:moved` (the tracked centre in `world` moved more than `ball_moved_m` since the last
+//! one), `reach:<state>` (moving, reached, unreachable, cancelled, failed) for the arm's current
+//! goal, `gaze:<state>` for the neck's, and `timer:<label>` (scan, courtesy, homed).
+//!
+//! Every utterance is a constant of [`say`].
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use interfaces::Header;
+use interfaces::msg::body::{
+    JointGoal, JointMode, JointTarget, ReachGoal, ReachKind, ReachState, ReachStatus,
+};
+use interfaces::msg::command::{Command, Game, GameCommand};
+use interfaces::msg::speech::Priority;
+use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack};
+
+use crate::engine::{Builder, Context, Definition, DefinitionError, Event, Machine, Step};
+use crate::settings::{JointRest, TouchSettings};
+
+/// The machine's name (the `machine` field of the Executive's messages).
+pub const MACHINE: &str = "touch_the_ball";
+
+/// Every sentence the robot says in this game.
+pub mod say {
+    pub const GREETING: &str = "Hello, I am Loki. Nice to meet you!";
+    pub const PLAY_ACK: &str = "Great, let's play! Show me the ball and ask me to scan it.";
+    pub const ALREADY_PLAYING: &str = "We are already playing.";
+    pub const LOOKING: &str = "I'm looking for the ball.";
+    pub const ALREADY_LOOKING: &str = "I am already looking for the ball.";
+    pub const SEE_IT: &str = "I see the ball.";
+    pub const ALREADY_SEE_IT: &str = "I can already see the ball.";
+    pub const CANNOT_FIND: &str = "I cannot find the ball. Please show it to me.";
+    pub const OUT_OF_SIGHT: &str = "The ball is out of my sight.";
+    pub const LOST: &str = "I lost the ball.";
+    pub const GOING_TO_TOUCH: &str = "I'm going to touch the ball.";
+    pub const TOUCHING: &str = "I'm touching the ball.";
+    pub const FOLLOWING: &str = "I'm following the ball.";
+    pub const THANKS: &str = "Thank you! I'm moving my arm back.";
+    pub const COURTESY: &str = "I think I touched it. I'm moving my arm back.";
+    pub const CANT_REACH: &str = "I can't reach it.";
+    pub const ARM_FAILED: &str = "Something is wrong with my arm.";
+    pub const NOT_SEEN: &str = "I have not seen the ball yet.";
+    pub const NOT_TOUCHING: &str = "I am not touching the ball.";
+    pub const PLEASE_REPEAT: &str = "Please repeat.";
+    pub const NOT_THIS_GAME: &str = "That is not a command of this game.";
+    pub const GOODBYE: &str = "Thank you for playing. Goodbye!";
+}
+
+/// Every state path of the machine, for tests and tools.
+pub mod state {
+    pub const GAME: &str = "game";
+    pub const WAITING: &str = "game/waiting";
+    pub const PLAYING: &str = "game/playing";
+    pub const EYES: &str = "game/playing/eyes";
+    pub const EYES_IDLE: &str = "game/playing/eyes/idle";
+    pub const SEARCHING: &str = "game/playing/eyes/searching";
+    pub const LOOKING: &str = "game/playing/eyes/searching/looking";
+    pub const TRACKING: &str = "game/playing/eyes/tracking";
+    pub const OUT_OF_SIGHT: &str = "game/playing/eyes/out_of_sight";
+    pub const ARM: &str = "game/playing/arm";
+    pub const RESTING: &str = "game/playing/arm/resting";
+    pub const REACHING: &str = "game/playing/arm/reaching";
+    pub const MOVING: &str = "game/playing/arm/reaching/moving";
+    pub const TOUCHING: &str = "game/playing/arm/reaching/touching";
+    pub const FOLLOWING: &str = "game/playing/arm/reaching/following";
+    pub const HOMING: &str = "game/playing/arm/homing";
+    pub const FINISHED: &str = "finished";
+}
+
+/// The machine's actions (data; [`TouchCtx`] turns them into [`Output`]s).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Act {
+    Say(&'static str, Priority),
+    /// Send the ball's description to the tracker.
+    SendTarget,
+    /// Clear the tracker's target.
+    ClearTarget,
+    /// Gaze at the next scan point.
+    ScanNext,
+    /// Gaze at the ball, following it.
+    GazeAtBall,
+    /// Cancel the neck's goal (it holds where it is).
+    CancelGaze,
+    /// Reach the ball with the hand, following it.
+    ReachBall,
+    /// Cancel the arm's reach, then send it to its rest posture.
+    HomeArm,
+    /// Cancel the gaze, then the head to its rest posture.
+    HeadAhead,
+    /// Whether the eyes have the ball now.
+    BallSeen(bool),
+    /// The game is over.
+    Finish,
+}
+
+fn normal(text: &'static str) -> Act {
+    Act::Say(text, Priority::Normal)
+}
+fn high(text: &'static str) -> Act {
+    Act::Say(text, Priority::High)
+}
+
+/// What an event carries.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum Input {
+    #[default]
+    None,
+    Command(GameCommand),
+    Ball(BallEvent),
+    Track(BallTrack),
+    Reach(ReachStatus),
+}
+
+/// A line of the game log (the Executive publishes it as a `GameLog`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogLine {
+    /// `state`, `said`, `heard`, `ball`, `reach`, `anomaly`, `done`.
+    pub kind: &'static str,
+    pub text: String,
+    /// The distance the line is about (m), -1 when none.
+    pub distance_m: f64,
+}
+
+/// What the game asks of the rest of the robot, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// `speech/say`.
+    Say { text: String, priority: Priority },
+    /// `vision/ball_target` (`active = false` clears it).
+    SetBallTarget(BallTarget),
+    /// `body/reach`: a goal.
+    Reach(ReachGoal),
+    /// `body/reach`: a cancel (`active = false`) for a body part.
+    CancelReach(ReachGoal),
+    /// `body/joint_goal`: a rest posture.
+    Home(JointGoal),
+    /// `body/joint_goal` with `release = true`: the Executive gives back the joints its rest
+    /// postures took, so the reach component can move them at once.
+    Release(JointGoal),
+    /// `executive/log` and the console.
+    Log(LogLine),
+    /// The machine reached its final state.
+    Finish,
+}
+
+/// The game's context: what the guards read and the actions write.
+#[derive(Debug)]
+pub struct TouchCtx {
+    settings: Arc<TouchSettings>,
+    outputs: Vec<Output>,
+    next_id: u64,
+    arm_goal: u64,
+    gaze_goal: u64,
+    scan_index: usize,
+    ball_seen: bool,
+    /// The ball's last tracked centre in `world`, and where `ball:moved` last reported it.
+    ball_world: Option<[f64; 3]>,
+    ball_reported: Option<[f64; 3]>,
+    ball_camera_distance: Option<f64>,
+}
+
+impl TouchCtx {
+    fn new(settings: Arc<TouchSettings>) -> Self {
+        TouchCtx {
+            settings,
+            outputs: Vec::new(),
+            next_id: 0,
+            arm_goal: 0,
+            gaze_goal: 0,
+            scan_index: 0,
+            ball_seen: false,
+            ball_world: None,
+            ball_reported: None,
+            ball_camera_distance: None,
+        }
+    }
+
+    fn id(&mut self) -> u64 {
+        self.next_id += 1;
+        self.next_id
+    }
+
+    fn log(&mut self, kind: &'static str, text: String, distance_m: f64) {
+        self.outputs.push(Output::Log(LogLine {
+            kind,
+            text,
+            distance_m,
+        }));
+    }
+
+    fn reach(
+        &mut self,
+        body_part: &str,
+        kind: ReachKind,
+        frame: &str,
+        p: [f64; 3],
+        follow: bool,
+    ) -> ReachGoal {
+        let s = &self.settings;
+        ReachGoal {
+            header: Header::default(),
+            id: 0,
+            client: s.client.clone(),
+            active: true,
+            body_part: body_part.to_string(),
+            kind,
+            frame: frame.to_string(),
+            position_m: p,
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            tolerance_m: if kind == ReachKind::Gaze {
+                0.0
+            } else {
+                s.touch_tolerance_m
+            },
+            follow,
+            min_duration_s: 0.0,
+        }
+    }
+
+    fn cancel(&mut self, body_part: &str, id: u64) {
+        let mut g = self.reach(body_part, ReachKind::Position, "world", [0.0; 3], false);
+        g.active = false;
+        g.id = id;
+        self.outputs.push(Output::CancelReach(g));
+    }
+
+    fn rest_goal(&self, joints: &[JointRest]) -> JointGoal {
+        JointGoal {
+            header: Header::default(),
+            client: self.settings.client.clone(),
+            priority: self.settings.rest_priority,
+            targets: joints
+                .iter()
+                .map(|r| JointTarget {
+                    joint: r.joint.clone(),
+                    mode: JointMode::Position,
+                    position: r.position,
+                    max_speed: self.settings.rest_max_speed,
+                    velocity: 0.0,
+                })
+                .collect(),
+            release: false,
+        }
+    }
+
+    fn target(&self, active: bool) -> BallTarget {
+        BallTarget {
+            header: Header::default(),
+            active,
+            hue_deg: self.settings.ball_hue_deg,
+            saturation: self.settings.ball_saturation,
+            diameter_m: self.settings.ball_diameter_m,
+        }
+    }
+}
+
+impl Context<Act, Input> for TouchCtx {
+    fn run(&mut self, action: &Act, _event: &Event<Input>) {
+        let s = self.settings.clone();
+        match *action {
+            Act::Say(text, priority) => {
+                self.log("said", text.to_string(), -1.0);
+                self.outputs.push(Output::Say {
+                    text: text.to_string(),
+                    priority,
+                });
+            }
+            Act::SendTarget => {
+                let t = self.target(true);
+                self.outputs.push(Output::SetBallTarget(t));
+            }
+            Act::ClearTarget => {
+                let t = self.target(false);
+                self.outputs.push(Output::SetBallTarget(t));
+            }
+            Act::ScanNext => {
+                let p = s.scan_points[self.scan_index % s.scan_points.len()];
+                self.scan_index += 1;
+                let mut g = self.reach(&s.neck, ReachKind::Gaze, "world", p, false);
+                g.id = self.id();
+                self.gaze_goal = g.id;
+                self.outputs.push(Output::Reach(g));
+            }
+            Act::GazeAtBall => {
+                let mut g = self.reach(&s.neck, ReachKind::Gaze, "ball", [0.0; 3], true);
+                g.id = self.id();
+                self.gaze_goal = g.id;
+                self.outputs.push(Output::Reach(g));
+            }
+            Act::CancelGaze => {
+                let id = std::mem::take(&mut self.gaze_goal);
+                self.cancel(&s.neck, id);
+            }
+            Act::ReachBall => {
+                let release = JointGoal {
+                    header: Header::default(),
+                    client: s.client.clone(),
+                    priority: s.rest_priority,
+                    targets: Vec::new(),
+                    release: true,
+                };
+                self.outputs.push(Output::Release(release));
+                let mut g = self.reach(&s.arm, ReachKind::Position, "ball", s.touch_offset_m, true);
+                g.id = self.id();
+                self.arm_goal = g.id;
+                self.outputs.push(Output::Reach(g));
+            }
+            Act::HomeArm => {
+                let id = std::mem::take(&mut self.arm_goal);
+                self.cancel(&s.arm, id);
+                let goal = self.rest_goal(&s.arm_rest);
+                self.outputs.push(Output::Home(goal));
+            }
+            Act::HeadAhead => {
+                let id = std::mem::take(&mut self.gaze_goal);
+                self.cancel(&s.neck, id);
+                let goal = self.rest_goal(&s.head_rest);
+                self.outputs.push(Output::Home(goal));
+            }
+            Act::BallSeen(seen) => self.ball_seen = seen,
+            Act::Finish => {
+                self.log("done", "the game is over".into(), -1.0);
+                self.outputs.push(Output::Finish);
+            }
+        }
+    }
+}
+
+type Def = Definition<TouchCtx, Input, Act>;
+
+fn seen(c: &TouchCtx, _: &Event<Input>) -> bool {
+    c.ball_seen
+}
+
+/// The touch-the-ball machine for `settings` (see the module docs for the states).
+pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
+    use state::*;
+    let mut b = Builder::<TouchCtx, Input, Act>::new(MACHINE);
+    b.root_initial("game");
+    b.compound(GAME, "waiting");
+    b.atomic(WAITING);
+    b.parallel(PLAYING).exit(Act::ClearTarget);
+    b.compound(EYES, "idle");
+    b.atomic(EYES_IDLE);
+    b.compound(SEARCHING, "looking")
+        .entry(Act::SendTarget)
+        .entry(normal(say::LOOKING));
+    b.atomic(LOOKING).entry(Act::ScanNext);
+    b.atomic(TRACKING)
+        .entry(Act::BallSeen(true))
+        .entry(Act::GazeAtBall)
+        .entry(normal(say::SEE_IT))
+        .exit(Act::BallSeen(false));
+    b.atomic(OUT_OF_SIGHT).entry(Act::CancelGaze);
+    b.compound(ARM, "resting");
+    b.atomic(RESTING);
+    b.compound(REACHING, "moving").entry(Act::ReachBall);
+    b.atomic(MOVING);
+    b.atomic(TOUCHING).entry(normal(say::TOUCHING));
+    b.atomic(FOLLOWING).entry(normal(say::FOLLOWING));
+    b.atomic(HOMING).entry(Act::HomeArm);
+    b.final_state(FINISHED);
+
+    // The whole game.
+    for cmd in ["command:stop", "command:quit"] {
+        b.on(GAME, cmd)
+            .to(FINISHED)
+            .action(Act::HomeArm)
+            .action(Act::HeadAhead)
+            .action(Act::Say(say::GOODBYE, Priority::Urgent))
+            .action(Act::Finish);
+    }
+    b.on(GAME, "command:greet").action(normal(say::GREETING));
+    b.on(GAME, "command:none")
+        .action(normal(say::PLEASE_REPEAT));
+    b.on(GAME, "command:other_game")
+        .action(normal(say::NOT_THIS_GAME));
+    // Explanations: in the arm region (one answer, however many regions are active).
+    for s in [WAITING, ARM] {
+        b.on(s, "command:touch_ball").action(normal(say::NOT_SEEN));
+        b.on(s, "command:you_touched_it")
+            .action(normal(say::NOT_TOUCHING));
+    }
+
+    // Waiting for the person.
+    b.on(WAITING, "command:play")
+        .to(PLAYING)
+        .action(normal(say::PLAY_ACK));
+    for cmd in ["command:scan_ball", "command:track_ball"] {
+        b.on(WAITING, cmd).to(SEARCHING);
+        b.on(EYES_IDLE, cmd).to(SEARCHING);
+        b.on(SEARCHING, cmd).action(normal(say::ALREADY_LOOKING));
+        b.on(TRACKING, cmd).action(normal(say::ALREADY_SEE_IT));
+        b.on(OUT_OF_SIGHT, cmd).to(SEARCHING);
+    }
+    b.on(PLAYING, "command:play")
+        .action(normal(say::ALREADY_PLAYING));
+
+    // The eyes.
+    b.after(
+        LOOKING,
+        Duration::from_secs_f64(settings.scan_dwell_s),
+        "scan",
+    )
+    .to(LOOKING);
+    b.on(SEARCHING, "ball:detected").to(TRACKING);
+    b.on(SEARCHING, "ball:detection_timed_out")
+        .action(Act::SendTarget)
+        .action(normal(say::CANNOT_FIND));
+    b.on(TRACKING, "ball:out_of_view")
+        .to(OUT_OF_SIGHT)
+        .action(high(say::OUT_OF_SIGHT));
+    b.on(TRACKING, "ball:lost")
+        .to(SEARCHING)
+        .action(high(say::LOST));
+    b.on(TRACKING, "ball:detection_timed_out")
+        .to(SEARCHING)
+        .action(high(say::LOST));
+    b.on(OUT_OF_SIGHT, "ball:lost")
+        .to(SEARCHING)
+        .action(high(say::LOST));
+    b.on(OUT_OF_SIGHT, "ball:detection_timed_out")
+        .to(SEARCHING)
+        .action(high(say::LOST));
+    b.on(OUT_OF_SIGHT, "ball:detected").to(TRACKING);
+
+    // The arm.
+    b.on(RESTING, "command:touch_ball")
+        .guard("ball seen", seen)
+        .to(REACHING)
+        .action(normal(say::GOING_TO_TOUCH));
+    b.on(HOMING, "command:touch_ball")
+        .guard("ball seen", seen)
+        .to(REACHING)
+        .action(normal(say::GOING_TO_TOUCH));
+    b.after(HOMING, Duration::from_secs_f64(settings.homing_s), "homed")
+        .to(RESTING);
+    b.on(REACHING, "command:touch_ball")
+        .guard("ball seen", seen)
+        .to(REACHING)
+        .action(normal(say::GOING_TO_TOUCH));
+    b.on(MOVING, "reach:reached").to(TOUCHING);
+    b.on(FOLLOWING, "reach:reached").to(TOUCHING);
+    b.on(MOVING, "ball:moved").to(FOLLOWING);
+    b.on(TOUCHING, "ball:moved").to(FOLLOWING);
+    b.after(
+        TOUCHING,
+        Duration::from_secs_f64(settings.courtesy_delay_s),
+        "courtesy",
+    )
+    .to(HOMING)
+    .action(normal(say::COURTESY));
+    b.on(REACHING, "command:you_touched_it")
+        .to(HOMING)
+        .action(normal(say::THANKS));
+    b.on(REACHING, "reach:unreachable")
+        .to(HOMING)
+        .action(high(say::CANT_REACH));
+    b.on(REACHING, "reach:failed")
+        .to(HOMING)
+        .action(high(say::ARM_FAILED));
+    b.on(REACHING, "ball:lost").to(HOMING);
+    b.build()
+}
+
+/// The event name of a command.
+pub fn command_event(c: Command) -> &'static str {
+    match c {
+        Command::None => "command:none",
+        Command::Greet => "command:greet",
+        Command::Play => "command:play",
+        Command::ScanBall => "command:scan_ball",
+        Command::TrackBall => "command:track_ball",
+        Command::TouchBall => "command:touch_ball",
+        Command::YouTouchedIt => "command:you_touched_it",
+        Command::Quit => "command:quit",
+        Command::Stop => "command:stop",
+        Command::Yes => "command:yes",
+        Command::No => "command:no",
+        _ => "command:other_game",
+    }
+}
+
+fn ball_event_name(k: BallEventKind) -> &'static str {
+    match k {
+        BallEventKind::Detected => "ball:detected",
+        BallEventKind::OutOfView => "ball:out_of_view",
+        BallEventKind::Lost => "ball:lost",
+        BallEventKind::DetectionTimedOut => "ball:detection_timed_out",
+    }
+}
+
+fn reach_state_name(s: ReachState) -> &'static str {
+    match s {
+        ReachState::Moving => "moving",
+        ReachState::Reached => "reached",
+        ReachState::Unreachable => "unreachable",
+        ReachState::Cancelled => "cancelled",
+        ReachState::Failed => "failed",
+    }
+}
+
+/// A state path without the `game/playing/` (or `game/`) prefix, for the log.
+fn short(path: &str) -> &str {
+    path.strip_prefix("game/playing/")
+        .or_else(|| path.strip_prefix("game/"))
+        .unwrap_or(path)
+}
+
+/// The innermost states of a list (those no other state of the list is inside), shortened.
+fn short_leaves(states: &[String]) -> String {
+    let leaves: Vec<&str> = states
+        .iter()
+        .filter(|s| {
+            !states.iter().any(|o| {
+                o.len() > s.len() && o.starts_with(s.as_str()) && o.as_bytes()[s.len()] == b'/'
+            })
+        })
+        .map(|s| short(s))
+        .collect();
+    if leaves.is_empty() {
+        "-".into()
+    } else {
+        leaves.join(" + ")
+    }
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+}
+
+/// What one input did: the machine's steps (for `executive/transitions`) and the outputs, in
+/// order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Outcome {
+    pub steps: Vec<Step<Act>>,
+    pub outputs: Vec<Output>,
+}
+
+impl Outcome {
+    /// The texts said, in order.
+    pub fn said(&self) -> Vec<&str> {
+        self.outputs
+            .iter()
+            .filter_map(|o| match o {
+                Output::Say { text, .. } => Some(text.as_str()),
+                _ => None,
+            })
+            .collect()
+    }
+    fn extend(&mut self, other: Outcome) {
+        self.steps.extend(other.steps);
+        self.outputs.extend(other.outputs);
+    }
+}
+
+/// The game: the machine, its context, and the conversion of bus messages into events.
+///
+/// Every input method first fires the timers due at `now` (see [`TouchGame::advance`]), then
+/// handles the input. `now` is the bus clock's time since its epoch.
+#[derive(Debug)]
+pub struct TouchGame {
+    machine: Machine<TouchCtx, Input, Act>,
+    ctx: TouchCtx,
+}
+
+impl TouchGame {
+    /// A game with `settings` (checked), not started.
+    pub fn new(settings: TouchSettings) -> Result<TouchGame, DefinitionError> {
+        let def = Arc::new(definition(&settings)?);
+        Ok(TouchGame {
+            machine: Machine::new(def),
+            ctx: TouchCtx::new(Arc::new(settings)),
+        })
+    }
+
+    /// The machine (configuration, counters, definition).
+    pub fn machine(&self) -> &Machine<TouchCtx, Input, Act> {
+        &self.machine
+    }
+
+    /// Whether the game is over.
+    pub fn is_finished(&self) -> bool {
+        self.machine.is_finished()
+    }
+
+    /// The next timer deadline, for the caller's sleep.
+    pub fn next_deadline(&self) -> Option<Duration> {
+        self.machine.next_deadline()
+    }
+
+    /// Enters the initial state.
+    pub fn start(&mut self, now: Duration) -> Outcome {
+        let mark = self.ctx.outputs.len();
+        let step = self.machine.start(&mut self.ctx, now);
+        self.finish_step(step, mark)
+    }
+
+    fn finish_step(&mut self, step: Step<Act>, mark: usize) -> Outcome {
+        if !step.ignored && (!step.exited.is_empty() || !step.entered.is_empty()) {
+            let text = format!(
+                "{}: {} -> {}; now {}",
+                step.event,
+                short_leaves(&step.exited),
+                short_leaves(&step.entered),
+                step.active
+                    .iter()
+                    .map(|s| short(s))
+                    .collect::<Vec<_>>()
+                    .join(" + ")
+            );
+            self.ctx.outputs.insert(
+                mark.min(self.ctx.outputs.len()),
+                Output::Log(LogLine {
+                    kind: "state",
+                    text,
+                    distance_m: -1.0,
+                }),
+            );
+        }
+        Outcome {
+            steps: vec![step],
+            outputs: std::mem::take(&mut self.ctx.outputs),
+        }
+    }
+
+    fn send(&mut self, name: &str, payload: Input, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let mark = self.ctx.outputs.len();
+        let step = self
+            .machine
+            .send(&mut self.ctx, Event::new(name, payload), now);
+        out.extend(self.finish_step(step, mark));
+        out
+    }
+
+    /// Fires the timers due at `now`.
+    pub fn advance(&mut self, now: Duration) -> Outcome {
+        let mut out = Outcome::default();
+        // One timer at a time so each step's outputs follow its own state line.
+        loop {
+            match self.machine.next_deadline() {
+                Some(d) if d <= now => {
+                    let mark = self.ctx.outputs.len();
+                    for step in self.machine.advance(&mut self.ctx, d) {
+                        let o = self.finish_step(step, mark);
+                        out.extend(o);
+                    }
+                }
+                _ => break,
+            }
+        }
+        self.machine.advance(&mut self.ctx, now);
+        out
+    }
+
+    /// A command from `game/command`. Yes/No are the dialog's business (logged, not acted on).
+    pub fn command(&mut self, cmd: &GameCommand, now: Duration) -> Outcome {
+        let name = command_event(cmd.command);
+        let mut out = self.advance(now);
+        out.outputs.push(Output::Log(LogLine {
+            kind: "heard",
+            text: format!(
+                "\"{}\" -> {} ({:?}, confidence {:.2}{})",
+                cmd.text,
+                name,
+                cmd.source,
+                cmd.confidence,
+                if cmd.confirmed { ", confirmed" } else { "" }
+            ),
+            distance_m: -1.0,
+        }));
+        if cmd.command.is_answer() {
+            return out;
+        }
+        let name = if cmd.command != Command::None && !cmd.command.in_game(Game::Touch) {
+            "command:other_game"
+        } else {
+            name
+        };
+        let o = self.send(name, Input::Command(cmd.clone()), now);
+        let ignored = o.steps.last().is_some_and(|s| s.ignored);
+        out.extend(o);
+        if ignored {
+            out.outputs.push(Output::Log(LogLine {
+                kind: "anomaly",
+                text: format!(
+                    "{name} ignored in {}",
+                    self.machine.active_leaves().join(" + ")
+                ),
+                distance_m: -1.0,
+            }));
+        }
+        out
+    }
+
+    /// An event from `vision/ball_events`.
+    pub fn ball_event(&mut self, ev: &BallEvent, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let (text, d) = match (ev.kind, self.ctx.ball_camera_distance) {
+            (BallEventKind::Detected, Some(d)) => {
+                (format!("ball detected, {d:.2} m from the camera"), d)
+            }
+            (k, _) => (
+                format!("ball {}", &ball_event_name(k)[5..].replace('_', " ")),
+                -1.0,
+            ),
+        };
+        out.outputs.push(Output::Log(LogLine {
+            kind: "ball",
+            text,
+            distance_m: d,
+        }));
+        if ev.kind != BallEventKind::Detected {
+            // A new track starts from scratch.
+            self.ctx.ball_reported = None;
+        }
+        out.extend(self.send(ball_event_name(ev.kind), Input::Ball(ev.clone()), now));
+        out
+    }
+
+    /// A track from `vision/ball`: raises `ball:moved` when the ball's `world` centre moved more
+    /// than `ball_moved_m` since the last report (the first position is only recorded).
+    pub fn ball_track(&mut self, track: &BallTrack, now: Duration) -> Outcome {
+        if track.has_centre_m {
+            self.ctx.ball_camera_distance = Some(norm(track.centre_m));
+        }
+        if !track.has_centre_world {
+            return self.advance(now);
+        }
+        let p = track.centre_world_m;
+        self.ctx.ball_world = Some(p);
+        match self.ctx.ball_reported {
+            None => {
+                self.ctx.ball_reported = Some(p);
+                self.advance(now)
+            }
+            Some(last) if dist(last, p) > self.ctx.settings.ball_moved_m => {
+                self.ctx.ball_reported = Some(p);
+                let mut out = self.advance(now);
+                out.outputs.push(Output::Log(LogLine {
+                    kind: "ball",
+                    text: format!(
+                        "ball moved {:.2} m to ({:.2}, {:.2}, {:.2}) in world",
+                        dist(last, p),
+                        p[0],
+                        p[1],
+                        p[2]
+                    ),
+                    distance_m: self.ctx.ball_camera_distance.unwrap_or(-1.0),
+                }));
+                out.extend(self.send("ball:moved", Input::Track(track.clone()), now));
+                out
+            }
+            Some(_) => self.advance(now),
+        }
+    }
+
+    /// A status from `body/reach_status`: the arm's current goal becomes `reach:<state>`, the
+    /// neck's `gaze:<state>`; other goals' statuses are ignored (not counted).
+    pub fn reach_status(&mut self, st: &ReachStatus, now: Duration) -> Outcome {
+        let state = reach_state_name(st.state);
+        let prefix = if st.id != 0 && st.id == self.ctx.arm_goal {
+            "reach"
+        } else if st.id != 0 && st.id == self.ctx.gaze_goal {
+            "gaze"
+        } else {
+            return self.advance(now);
+        };
+        let mut out = self.advance(now);
+        if prefix == "reach" && st.state != ReachState::Moving {
+            out.outputs.push(Output::Log(LogLine {
+                kind: "reach",
+                text: format!(
+                    "hand {state}: {:.3} m from the ball{}",
+                    st.distance_m,
+                    if st.detail.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", st.detail)
+                    }
+                ),
+                distance_m: st.distance_m,
+            }));
+        }
+        if prefix == "gaze" && matches!(st.state, ReachState::Unreachable | ReachState::Failed) {
+            out.outputs.push(Output::Log(LogLine {
+                kind: "anomaly",
+                text: format!("gaze goal {} {state}: {}", st.id, st.detail),
+                distance_m: st.distance_m,
+            }));
+        }
+        out.extend(self.send(&format!("{prefix}:{state}"), Input::Reach(st.clone()), now));
+        out
+    }
+
+    /// The ball's last tracked centre in `world`.
+    pub fn ball_world(&self) -> Option<[f64; 3]> {
+        self.ctx.ball_world
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,587 @@
+//! The touch-the-ball machine on a virtual clock: scripted inputs, asserted outputs.
+
+use super::*;
+use interfaces::msg::command::CommandSource;
+
+fn t(s: f64) -> Duration {
+    Duration::from_secs_f64(s)
+}
+
+fn cmd(c: Command) -> GameCommand {
+    GameCommand {
+        game: Game::Touch,
+        command: c,
+        source: CommandSource::Voice,
+        text: c.phrase().to_string(),
+        confidence: 0.9,
+        ..Default::default()
+    }
+}
+
+fn ball(kind: BallEventKind) -> BallEvent {
+    BallEvent {
+        kind,
+        ..Default::default()
+    }
+}
+
+fn track(p: [f64; 3]) -> BallTrack {
+    BallTrack {
+        found: true,
+        has_centre_m: true,
+        centre_m: [0.0, 0.2, 0.6],
+        has_centre_world: true,
+        centre_world_m: p,
+        ..Default::default()
+    }
+}
+
+fn status(id: u64, state: ReachState) -> ReachStatus {
+    ReachStatus {
+        id,
+        body_part: "left_arm_7".into(),
+        state,
+        distance_m: 0.01,
+        ..Default::default()
+    }
+}
+
+/// A game with the default settings, started at t = 0.
+fn game() -> TouchGame {
+    let mut g = TouchGame::new(TouchSettings::default()).unwrap();
+    let o = g.start(t(0.0));
+    assert_eq!(o.steps[0].active, [state::WAITING]);
+    g
+}
+
+fn active(g: &TouchGame) -> Vec<String> {
+    g.machine().active_leaves()
+}
+
+fn reaches(o: &Outcome) -> Vec<&ReachGoal> {
+    o.outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::Reach(r) => Some(r),
+            _ => None,
+        })
+        .collect()
+}
+
+fn cancels(o: &Outcome) -> Vec<&ReachGoal> {
+    o.outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::CancelReach(r) => Some(r),
+            _ => None,
+        })
+        .collect()
+}
+
+fn homes(o: &Outcome) -> Vec<&JointGoal> {
+    o.outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::Home(j) => Some(j),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Played until the ball is tracked (t = 3 s); returns the follow-gaze goal.
+fn tracking() -> TouchGame {
+    let mut g = game();
+    g.command(&cmd(Command::Play), t(1.0));
+    g.command(&cmd(Command::ScanBall), t(2.0));
+    g.ball_track(&track([0.6, 0.1, 0.78]), t(2.9));
+    g.ball_event(&ball(BallEventKind::Detected), t(3.0));
+    assert!(active(&g).contains(&state::TRACKING.to_string()));
+    g
+}
+
+/// Tracking, then "touch it" at t = 4 s; returns the arm goal's id.
+fn reaching() -> (TouchGame, u64) {
+    let mut g = tracking();
+    let o = g.command(&cmd(Command::TouchBall), t(4.0));
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1, "{o:?}");
+    (g, r[0].id)
+}
+
+#[test]
+fn the_person_greets_and_asks_to_play_and_the_robot_answers() {
+    let mut g = game();
+    let o = g.command(&cmd(Command::Greet), t(1.0));
+    assert_eq!(o.said(), [say::GREETING]);
+    assert_eq!(active(&g), [state::WAITING]);
+    assert!(
+        matches!(&o.outputs[0], Output::Log(l) if l.kind == "heard" && l.text.contains("hello"))
+    );
+    let o = g.command(&cmd(Command::Play), t(2.0));
+    assert_eq!(o.said(), [say::PLAY_ACK]);
+    assert_eq!(active(&g), [state::RESTING, state::EYES_IDLE]);
+    assert_eq!(o.steps[0].entered[0], state::PLAYING);
+    // Greeting again while playing still works; playing again is explained.
+    assert_eq!(
+        g.command(&cmd(Command::Greet), t(3.0)).said(),
+        [say::GREETING]
+    );
+    assert_eq!(
+        g.command(&cmd(Command::Play), t(4.0)).said(),
+        [say::ALREADY_PLAYING]
+    );
+}
+
+#[test]
+fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
+    let s = TouchSettings::default();
+    let mut g = game();
+    g.command(&cmd(Command::Play), t(1.0));
+    let o = g.command(&cmd(Command::ScanBall), t(2.0));
+    let target = o
+        .outputs
+        .iter()
+        .find_map(|x| match x {
+            Output::SetBallTarget(b) => Some(b.clone()),
+            _ => None,
+        })
+        .expect("a target");
+    assert!(target.active);
+    assert_eq!(
+        (target.hue_deg, target.saturation, target.diameter_m),
+        (52.0, 0.85, 0.07)
+    );
+    assert_eq!(o.said(), [say::LOOKING]);
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1);
+    assert_eq!(
+        (r[0].body_part.as_str(), r[0].kind, r[0].frame.as_str()),
+        ("neck", ReachKind::Gaze, "world")
+    );
+    assert_eq!(r[0].position_m, s.scan_points[0]);
+    assert!(!r[0].follow);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+
+    // The next scan point exactly one dwell (1.5 s) later, not before.
+    assert!(reaches(&g.advance(t(3.499))).is_empty());
+    let o = g.advance(t(3.5));
+    assert_eq!(reaches(&o)[0].position_m, s.scan_points[1]);
+    assert_eq!(o.steps[0].event, "timer:scan");
+    // Three more dwells: three more points, in order.
+    let o = g.advance(t(8.0));
+    let pts: Vec<[f64; 3]> = reaches(&o).iter().map(|r| r.position_m).collect();
+    assert_eq!(pts, s.scan_points[2..5]);
+    // Every scan point is on the table in front of the robot.
+    for p in &s.scan_points {
+        assert!((0.5..=0.8).contains(&p[0]) && (-0.4..=0.4).contains(&p[1]) && (1.1..=1.4).contains(&p[2]));
+    }
+
+    let o = g.ball_event(&ball(BallEventKind::Detected), t(8.2));
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1);
+    assert_eq!(
+        (r[0].body_part.as_str(), r[0].kind, r[0].frame.as_str()),
+        ("neck", ReachKind::Gaze, "ball")
+    );
+    assert!(r[0].follow && r[0].active);
+    assert_eq!(o.said(), [say::SEE_IT]);
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+    // No more scanning once tracking.
+    assert!(g.next_deadline().is_none());
+    assert!(reaches(&g.advance(t(20.0))).is_empty());
+}
+
+#[test]
+fn scan_before_play_starts_the_game_and_track_is_a_synonym() {
+    let mut g = game();
+    let o = g.command(&cmd(Command::TrackBall), t(1.0));
+    assert_eq!(o.said(), [say::LOOKING]);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+    assert_eq!(
+        g.command(&cmd(Command::ScanBall), t(2.0)).said(),
+        [say::ALREADY_LOOKING]
+    );
+}
+
+#[test]
+fn touch_reaches_the_ball_and_goes_home_when_told_it_touched_it() {
+    let mut g = tracking();
+    let o = g.command(&cmd(Command::TouchBall), t(4.0));
+    assert_eq!(o.said(), [say::GOING_TO_TOUCH]);
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1);
+    let goal = r[0].clone();
+    // The joints the rest posture took are given back first.
+    assert!(
+        o.outputs
+            .iter()
+            .any(|x| matches!(x, Output::Release(j) if j.release && j.client == "executive"))
+    );
+    assert_eq!(goal.body_part, "left_arm_7");
+    assert_eq!(goal.kind, ReachKind::Position);
+    assert_eq!(goal.frame, "ball");
+    assert_eq!(goal.position_m, [-0.03, 0.0, 0.0]);
+    assert_eq!(goal.tolerance_m, 0.02);
+    assert!(goal.follow && goal.active);
+    assert_eq!(goal.client, "executive");
+    assert_eq!(active(&g), [state::MOVING, state::TRACKING]);
+
+    // Moving status: nothing said. Reached: said.
+    assert!(
+        g.reach_status(&status(goal.id, ReachState::Moving), t(4.5))
+            .said()
+            .is_empty()
+    );
+    let o = g.reach_status(&status(goal.id, ReachState::Reached), t(6.0));
+    assert_eq!(o.said(), [say::TOUCHING]);
+    assert!(
+        o.outputs
+            .iter()
+            .any(|x| matches!(x, Output::Log(l) if l.kind == "reach" && l.distance_m == 0.01))
+    );
+    assert_eq!(active(&g), [state::TOUCHING, state::TRACKING]);
+
+    let o = g.command(&cmd(Command::YouTouchedIt), t(7.0));
+    assert_eq!(o.said(), [say::THANKS]);
+    // The reach is cancelled before the joint goal (IK first releases the joints).
+    let cancel_at = o
+        .outputs
+        .iter()
+        .position(|x| matches!(x, Output::CancelReach(_)))
+        .unwrap();
+    let home_at = o
+        .outputs
+        .iter()
+        .position(|x| matches!(x, Output::Home(_)))
+        .unwrap();
+    assert!(cancel_at < home_at);
+    let c = cancels(&o);
+    assert_eq!(
+        (c[0].body_part.as_str(), c[0].id, c[0].active),
+        ("left_arm_7", goal.id, false)
+    );
+    let h = homes(&o);
+    assert_eq!(h.len(), 1);
+    assert_eq!(
+        (h[0].client.as_str(), h[0].priority, h[0].release),
+        ("executive", 10, false)
+    );
+    let joints: Vec<&str> = h[0].targets.iter().map(|j| j.joint.as_str()).collect();
+    assert_eq!(joints, crate::settings::LEFT_ARM_JOINTS);
+    assert!(h[0].targets.iter().all(|j| j.max_speed > 0.0));
+    let elbow = h[0]
+        .targets
+        .iter()
+        .find(|j| j.joint == "left_elbow")
+        .unwrap();
+    assert_eq!(elbow.position, -0.15, "joint_motor's rest posture");
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+    // The neck keeps following the ball the whole time.
+    assert!(cancels(&o).iter().all(|c| c.body_part != "neck"));
+
+    // Home after homing_s (2 s), then another touch is a fresh reach with a new id.
+    g.advance(t(9.0));
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+    let o = g.command(&cmd(Command::TouchBall), t(10.0));
+    assert!(reaches(&o)[0].id > goal.id);
+}
+
+#[test]
+fn the_courtesy_delay_sends_the_arm_home_exactly_after_the_delay() {
+    let (mut g, id) = reaching();
+    g.reach_status(&status(id, ReachState::Reached), t(10.0));
+    assert_eq!(g.next_deadline(), Some(t(15.0)));
+    let o = g.advance(t(14.999));
+    assert!(o.outputs.is_empty() && o.steps.is_empty());
+    assert_eq!(active(&g), [state::TOUCHING, state::TRACKING]);
+    let o = g.advance(t(15.0));
+    assert_eq!(o.steps.len(), 1);
+    assert_eq!(o.steps[0].event, "timer:courtesy");
+    assert_eq!(o.said(), [say::COURTESY]);
+    assert_eq!(cancels(&o)[0].id, id);
+    assert_eq!(homes(&o).len(), 1);
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+}
+
+#[test]
+fn a_configured_courtesy_delay_is_used() {
+    let s = TouchSettings {
+        courtesy_delay_s: 2.0,
+        ..TouchSettings::default()
+    };
+    let mut g = TouchGame::new(s).unwrap();
+    g.start(t(0.0));
+    g.command(&cmd(Command::ScanBall), t(1.0));
+    g.ball_event(&ball(BallEventKind::Detected), t(2.0));
+    let id = reaches(&g.command(&cmd(Command::TouchBall), t(3.0)))[0].id;
+    g.reach_status(&status(id, ReachState::Reached), t(4.0));
+    assert!(g.advance(t(5.99)).said().is_empty());
+    assert_eq!(g.advance(t(6.0)).said(), [say::COURTESY]);
+}
+
+#[test]
+fn the_ball_moved_while_reaching_is_followed_and_said() {
+    let (mut g, id) = reaching();
+    g.reach_status(&status(id, ReachState::Reached), t(5.0));
+    // A small move (4 cm) is noise.
+    assert!(
+        g.ball_track(&track([0.6, 0.14, 0.78]), t(6.0))
+            .said()
+            .is_empty()
+    );
+    assert_eq!(active(&g), [state::TOUCHING, state::TRACKING]);
+    // 15 cm: following; the reach goal itself follows the ball (no new goal needed).
+    let o = g.ball_track(&track([0.6, 0.25, 0.78]), t(7.0));
+    assert_eq!(o.said(), [say::FOLLOWING]);
+    assert!(reaches(&o).is_empty());
+    assert_eq!(active(&g), [state::FOLLOWING, state::TRACKING]);
+    // While following, the courtesy timer is off.
+    assert!(g.advance(t(20.0)).said().is_empty());
+    assert_eq!(
+        g.reach_status(&status(id, ReachState::Reached), t(21.0))
+            .said(),
+        [say::TOUCHING]
+    );
+    assert_eq!(g.next_deadline(), Some(t(26.0)));
+    // "Touch it" again: a fresh goal (Fig. 6).
+    let o = g.command(&cmd(Command::TouchBall), t(22.0));
+    assert_eq!(o.said(), [say::GOING_TO_TOUCH]);
+    assert!(reaches(&o)[0].id > id);
+    assert_eq!(active(&g), [state::MOVING, state::TRACKING]);
+}
+
+#[test]
+fn an_unreachable_ball_is_explained_and_the_arm_goes_home() {
+    let (mut g, id) = reaching();
+    let o = g.reach_status(&status(id, ReachState::Unreachable), t(5.0));
+    assert_eq!(o.said(), [say::CANT_REACH]);
+    assert!(matches!(
+        o.outputs.iter().find(|x| matches!(x, Output::Say { .. })),
+        Some(Output::Say {
+            priority: Priority::High,
+            ..
+        })
+    ));
+    assert_eq!(cancels(&o)[0].id, id);
+    assert_eq!(homes(&o).len(), 1);
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+    // A failed status of an old goal is not this reach's business.
+    let o = g.reach_status(&status(id, ReachState::Failed), t(6.0));
+    assert!(o.steps.is_empty() && o.said().is_empty());
+}
+
+#[test]
+fn a_lost_ball_is_said_and_searched_again_and_the_arm_goes_home() {
+    let (mut g, _) = reaching();
+    let o = g.ball_event(&ball(BallEventKind::Lost), t(5.0));
+    assert_eq!(o.said(), [say::LOST, say::LOOKING]);
+    // Both regions stepped on the one event.
+    assert_eq!(o.steps.len(), 1);
+    assert_eq!(o.steps[0].active, [state::HOMING, state::LOOKING]);
+    assert!(
+        o.outputs
+            .iter()
+            .any(|x| matches!(x, Output::SetBallTarget(b) if b.active))
+    );
+    let r = reaches(&o);
+    assert_eq!(
+        (r[0].body_part.as_str(), r[0].frame.as_str()),
+        ("neck", "world")
+    );
+    // Found again.
+    g.ball_event(&ball(BallEventKind::Detected), t(6.0));
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+}
+
+#[test]
+fn out_of_view_then_lost_then_found_again() {
+    let mut g = tracking();
+    let o = g.ball_event(&ball(BallEventKind::OutOfView), t(5.0));
+    assert_eq!(o.said(), [say::OUT_OF_SIGHT]);
+    assert_eq!(cancels(&o)[0].body_part, "neck");
+    assert_eq!(active(&g), [state::RESTING, state::OUT_OF_SIGHT]);
+    // Touch now: not seen.
+    assert_eq!(
+        g.command(&cmd(Command::TouchBall), t(5.5)).said(),
+        [say::NOT_SEEN]
+    );
+    let o = g.ball_event(&ball(BallEventKind::Lost), t(6.0));
+    assert_eq!(o.said(), [say::LOST, say::LOOKING]);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+    let o = g.ball_event(&ball(BallEventKind::Detected), t(9.0));
+    assert_eq!(o.said(), [say::SEE_IT]);
+}
+
+#[test]
+fn commands_that_make_no_sense_now_are_explained() {
+    let mut g = game();
+    let o = g.command(&cmd(Command::TouchBall), t(1.0));
+    assert_eq!(o.said(), [say::NOT_SEEN]);
+    assert!(reaches(&o).is_empty());
+    assert_eq!(
+        g.command(&cmd(Command::YouTouchedIt), t(2.0)).said(),
+        [say::NOT_TOUCHING]
+    );
+    g.command(&cmd(Command::Play), t(3.0));
+    assert_eq!(
+        g.command(&cmd(Command::TouchBall), t(4.0)).said(),
+        [say::NOT_SEEN]
+    );
+    g.command(&cmd(Command::ScanBall), t(5.0));
+    assert_eq!(
+        g.command(&cmd(Command::TouchBall), t(6.0)).said(),
+        [say::NOT_SEEN]
+    );
+    assert_eq!(
+        g.command(&cmd(Command::YouTouchedIt), t(7.0)).said(),
+        [say::NOT_TOUCHING]
+    );
+    // Another game's command, and nothing understood.
+    assert_eq!(
+        g.command(&cmd(Command::Kick), t(8.0)).said(),
+        [say::NOT_THIS_GAME]
+    );
+    assert_eq!(
+        g.command(&cmd(Command::None), t(9.0)).said(),
+        [say::PLEASE_REPEAT]
+    );
+    // Yes/No belong to the dialog: logged as heard, nothing else.
+    g.advance(t(10.0));
+    let o = g.command(&cmd(Command::Yes), t(10.0));
+    assert!(o.steps.is_empty() && o.said().is_empty());
+    assert_eq!(o.outputs.len(), 1);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+}
+
+type Script = fn(&mut TouchGame);
+
+#[test]
+fn stop_or_quit_from_any_state_rests_says_goodbye_and_finishes() {
+    let scripts: Vec<(&str, Script)> = vec![
+        ("waiting", |_| {}),
+        ("playing", |g| {
+            g.command(&cmd(Command::Play), t(1.0));
+        }),
+        ("searching", |g| {
+            g.command(&cmd(Command::ScanBall), t(1.0));
+        }),
+        ("touching", |g| {
+            g.command(&cmd(Command::ScanBall), t(1.0));
+            g.ball_event(&ball(BallEventKind::Detected), t(2.0));
+            let id = reaches(&g.command(&cmd(Command::TouchBall), t(3.0)))[0].id;
+            g.reach_status(&status(id, ReachState::Reached), t(4.0));
+        }),
+        ("out_of_sight", |g| {
+            g.command(&cmd(Command::ScanBall), t(1.0));
+            g.ball_event(&ball(BallEventKind::Detected), t(2.0));
+            g.ball_event(&ball(BallEventKind::OutOfView), t(3.0));
+        }),
+        ("homing", |g| {
+            g.command(&cmd(Command::ScanBall), t(1.0));
+            g.ball_event(&ball(BallEventKind::Detected), t(2.0));
+            g.command(&cmd(Command::TouchBall), t(3.0));
+            g.command(&cmd(Command::YouTouchedIt), t(4.0));
+        }),
+    ];
+    for (name, script) in scripts {
+        for end in [Command::Stop, Command::Quit] {
+            let mut g = game();
+            script(&mut g);
+            let was_playing = g.machine().is_active(state::PLAYING);
+            let o = g.command(&cmd(end), t(5.0));
+            assert!(g.is_finished(), "{name} {end:?}");
+            assert_eq!(active(&g), [state::FINISHED], "{name}");
+            assert_eq!(o.said(), [say::GOODBYE], "{name}");
+            assert!(o.outputs.iter().any(|x| matches!(
+                x,
+                Output::Say {
+                    priority: Priority::Urgent,
+                    ..
+                }
+            )));
+            assert_eq!(o.outputs.last(), Some(&Output::Finish), "{name}");
+            let parts: Vec<&str> = cancels(&o).iter().map(|c| c.body_part.as_str()).collect();
+            assert_eq!(parts, ["left_arm_7", "neck"], "{name}");
+            let h = homes(&o);
+            assert_eq!(h.len(), 2, "{name}: arm and head");
+            assert!(h[1].targets.iter().any(|j| j.joint == "neck_pitch"));
+            assert_eq!(
+                o.outputs
+                    .iter()
+                    .any(|x| matches!(x, Output::SetBallTarget(b) if !b.active)),
+                was_playing,
+                "{name}: the tracker's target is cleared when the game played"
+            );
+            assert!(g.next_deadline().is_none(), "{name}: no timer left");
+            // Nothing happens after the end.
+            let o = g.command(&cmd(Command::Play), t(6.0));
+            assert!(o.said().is_empty() && o.steps[0].ignored);
+        }
+    }
+}
+
+#[test]
+fn every_step_reports_its_event_and_a_state_log_line() {
+    let mut g = game();
+    let o = g.command(&cmd(Command::ScanBall), t(1.0));
+    let s = &o.steps[0];
+    assert_eq!(s.event, "command:scan_ball");
+    assert_eq!(s.exited, [state::WAITING]);
+    assert_eq!(
+        s.entered,
+        [
+            state::PLAYING,
+            state::EYES,
+            state::SEARCHING,
+            state::LOOKING,
+            state::ARM,
+            state::RESTING
+        ]
+    );
+    let states: Vec<&LogLine> = o
+        .outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::Log(l) if l.kind == "state" => Some(l),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(states.len(), 1);
+    assert_eq!(
+        states[0].text,
+        "command:scan_ball: waiting -> eyes/searching/looking + arm/resting; now arm/resting + eyes/searching/looking"
+    );
+}
+
+#[test]
+fn the_diagram_names_every_state() {
+    let def = definition(&TouchSettings::default()).unwrap();
+    let m = def.mermaid();
+    for p in def.state_paths() {
+        let name = p.rsplit('/').next().unwrap();
+        assert!(m.contains(name), "{name} missing");
+    }
+    assert!(m.contains("after 5s (courtesy)"), "{m}");
+    assert!(m.contains("[ball seen]"), "{m}");
+}
+
+#[test]
+fn what_is_heard_is_logged_after_the_timers_that_fell_due_before_it() {
+    let (mut g, id) = reaching();
+    g.reach_status(&status(id, ReachState::Reached), t(5.0));
+    let o = g.command(&cmd(Command::Quit), t(30.0));
+    // courtesy (10 s), homed (12 s), then the command.
+    let events: Vec<&str> = o.steps.iter().map(|s| s.event.as_str()).collect();
+    assert_eq!(events, ["timer:courtesy", "timer:homed", "command:quit"]);
+    let kinds: Vec<&str> = o
+        .outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::Log(l) => Some(l.kind),
+            _ => None,
+        })
+        .collect();
+    let heard = kinds.iter().position(|k| *k == "heard").unwrap();
+    assert_eq!(kinds[heard + 1], "state");
+    assert_eq!(kinds.iter().filter(|k| **k == "state").count(), 3);
+}
