@@ -31,7 +31,6 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 use zenoh::bytes::Encoding;
-use zenoh::handlers::FifoChannelHandler;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::Sample;
@@ -347,11 +346,46 @@ impl Bus {
             return Err(BusError::InvalidName(name.to_string()));
         }
         let key = self.topic_key(name);
+        // A full queue drops its oldest sample (counted, logged rate-limited) instead of blocking
+        // zenoh's receive path: a slow consumer must never stall the other subscriptions of the
+        // process, nor the publishers.
+        let (tx, rx) = flume::bounded::<Sample>(queue.max(1));
+        let evict = rx.clone();
+        let dropped = self
+            .inner
+            .counters
+            .counter(&format!("queue_dropped/{name}"));
+        let drop_limiter = Mutex::new(RateLimiter::new(Duration::from_secs(1)));
+        let topic_name = name.to_string();
         let inner = self
             .inner
             .session
             .declare_subscriber(key)
-            .with(zenoh::handlers::FifoChannel::new(queue.max(1)))
+            .callback(move |sample| {
+                let mut sample = sample;
+                loop {
+                    match tx.try_send(sample) {
+                        Ok(()) => break,
+                        Err(flume::TrySendError::Full(back)) => {
+                            if evict.try_recv().is_ok() {
+                                let n = dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                                let mut l =
+                                    drop_limiter.lock().unwrap_or_else(|p| p.into_inner());
+                                if let Some(suppressed) = l.allow(Instant::now()) {
+                                    tracing::warn!(
+                                        topic = %topic_name,
+                                        total = n,
+                                        suppressed,
+                                        "subscriber queue full: dropped the oldest sample (the consumer is slower than the publisher)"
+                                    );
+                                }
+                            }
+                            sample = back;
+                        }
+                        Err(flume::TrySendError::Disconnected(_)) => break,
+                    }
+                }
+            })
             .await
             .map_err(zerr(format!("subscribing to {name}")))?;
         let token = self
@@ -363,7 +397,8 @@ impl Bus {
             ))
             .await?;
         Ok(Subscriber {
-            inner,
+            _inner: inner,
+            queue: rx,
             topic: name.to_string(),
             decode_errors: self
                 .inner
@@ -583,7 +618,10 @@ impl<T: Message> Publisher<T> {
 
 /// A typed subscription. Undecodable payloads are counted and skipped.
 pub struct Subscriber<T: Message> {
-    inner: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
+    /// Undeclared when dropped.
+    _inner: zenoh::pubsub::Subscriber<()>,
+    /// Bounded; full means drop-oldest (`queue_dropped/<topic>`).
+    queue: flume::Receiver<Sample>,
     topic: String,
     decode_errors: Arc<AtomicU64>,
     /// Samples taken from the queue (decoded or not).
@@ -609,7 +647,7 @@ impl<T: Message> Subscriber<T> {
     pub async fn recv(&self) -> Result<T, BusError> {
         loop {
             let sample = self
-                .inner
+                .queue
                 .recv_async()
                 .await
                 .map_err(|_| BusError::Closed(self.topic.clone()))?;
@@ -629,7 +667,7 @@ impl<T: Message> Subscriber<T> {
 
     /// A message already queued, if any (never waits).
     pub fn try_recv(&self) -> Option<T> {
-        while let Ok(Some(sample)) = self.inner.try_recv() {
+        while let Ok(sample) = self.queue.try_recv() {
             if let Some(msg) = self.decode(&sample) {
                 return Some(msg);
             }

@@ -176,3 +176,68 @@ external_inputs = ["chatter"]
         }
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_slow_subscriber_drops_its_oldest_samples_and_stalls_nobody() {
+    let ns = unique_namespace("slowsub");
+    let m = write_manifest(
+        &scratch(&ns),
+        "graph.toml",
+        r#"
+[[component]]
+name = "idle"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+"#,
+    );
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("idle up", Duration::from_secs(20), |l| {
+            l.contains("idle is up")
+        });
+    let sender = Bus::open(&launch.connect_args(), "test-sender")
+        .await
+        .unwrap();
+    let receiver = Bus::open(&launch.connect_args(), "test-receiver")
+        .await
+        .unwrap();
+    // Two subscriptions in one process: one never read (queue of 4), one read as it comes.
+    let slow = receiver
+        .subscriber_named::<Text>(topics::CHATTER.name(), 4)
+        .await
+        .unwrap();
+    let fast = receiver.subscriber(&topics::CHATTER).await.unwrap();
+    let publisher = sender.publisher(&topics::CHATTER).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    const N: usize = 200; // under the fast subscriber's default queue (256)
+    for i in 0..N {
+        let mut t = Text {
+            text: format!("{i}"),
+            ..Default::default()
+        };
+        publisher.publish(&mut t).await.unwrap();
+    }
+    // The fast subscriber gets every message although the slow one's queue overflowed.
+    for i in 0..N {
+        let t = fast
+            .recv_timeout(Duration::from_secs(5))
+            .await
+            .unwrap()
+            .unwrap_or_else(|| {
+                panic!("message {i} never came: the slow queue stalled the session")
+            });
+        assert_eq!(t.text, format!("{i}"));
+    }
+    // The slow one kept the newest four, and the drops are counted.
+    let kept: Vec<String> = std::iter::from_fn(|| slow.try_recv().map(|t| t.text)).collect();
+    let want: Vec<String> = (N - 4..N).map(|i| i.to_string()).collect();
+    assert_eq!(kept, want);
+    let dropped = receiver
+        .counters()
+        .snapshot()
+        .into_iter()
+        .find(|(k, _)| k == "queue_dropped/chatter")
+        .map(|(_, v)| v);
+    assert_eq!(dropped, Some((N - 4) as u64));
+}
