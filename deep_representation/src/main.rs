@@ -35,6 +35,10 @@ struct Args {
     /// fdatasync the change log after every change (survives a power loss, costs a disk flush).
     #[arg(long)]
     fsync: bool,
+    /// Follow the measured joints: subscribe body/joint_states (from joint_motor) and apply them
+    /// to the robot's joints, so transforms of the hands and the head camera follow the body.
+    #[arg(long)]
+    follow_joint_states: bool,
 }
 
 fn main() -> ExitCode {
@@ -48,9 +52,11 @@ fn main() -> ExitCode {
             compact_every: args.compact_every.max(1),
             fsync: args.fsync,
         },
+        follow_joint_states: args.follow_joint_states,
         ..ServiceConfig::new(args.scene)
     };
-    node::run(args.node, service::interface(), move |bus, shutdown| {
+    let interface = service::interface_with(config.follow_joint_states);
+    node::run(args.node, interface, move |bus, shutdown| {
         service::run(bus, config, shutdown)
     })
 }

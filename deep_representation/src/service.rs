@@ -70,6 +70,9 @@ pub struct ServiceConfig {
     pub predicates: PredicateConfig,
     /// Samples kept per edge.
     pub history_len: usize,
+    /// Follow the measured joints: subscribe `body/joint_states` and apply them to the robot's
+    /// joint edges (see [`follow_joint_states`]).
+    pub follow_joint_states: bool,
 }
 
 impl ServiceConfig {
@@ -84,6 +87,7 @@ impl ServiceConfig {
             store: StoreOptions::default(),
             predicates: PredicateConfig::default(),
             history_len: SceneGraph::DEFAULT_HISTORY_LEN,
+            follow_joint_states: false,
         }
     }
 
@@ -133,8 +137,18 @@ pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
 
 /// The component's interface (what `--describe` prints).
 pub fn interface() -> Interface {
-    Interface::new("deep_representation")
-        .publishes(&topics::DR_CHANGES)
+    interface_with(false)
+}
+
+/// The interface, with the `body/joint_states` subscription when `follow_joint_states`.
+pub fn interface_with(follow_joint_states: bool) -> Interface {
+    let i = Interface::new("deep_representation");
+    let i = if follow_joint_states {
+        i.subscribes(&topics::BODY_JOINT_STATES)
+    } else {
+        i
+    };
+    i.publishes(&topics::DR_CHANGES)
         .serves(&topics::DR_GET_NODE)
         .serves(&topics::DR_TRANSFORM)
         .serves(&topics::DR_UPDATE)
@@ -791,6 +805,7 @@ pub struct Running {
     pub recovery: Option<RecoveryReport>,
     _services: Vec<interfaces::bus::ServiceHandle>,
     publisher: tokio::task::JoinHandle<()>,
+    joints: Option<tokio::task::JoinHandle<()>>,
 }
 
 impl std::fmt::Debug for Running {
@@ -804,6 +819,9 @@ impl std::fmt::Debug for Running {
 impl Drop for Running {
     fn drop(&mut self) {
         self.publisher.abort();
+        if let Some(j) = &self.joints {
+            j.abort();
+        }
     }
 }
 
@@ -901,6 +919,17 @@ pub async fn start(bus: Bus, config: ServiceConfig) -> anyhow::Result<Running> {
         serve!(topics::DR_SNAPSHOT, snapshot),
         serve!(topics::DR_RESTORE, restore),
     ];
+    let joints = if config.follow_joint_states {
+        let sub = bus.subscriber(&topics::BODY_JOINT_STATES).await?;
+        tracing::info!(
+            "following the measured joints on {} (at most every {:?})",
+            topics::BODY_JOINT_STATES.name(),
+            JOINT_STATES_MIN_INTERVAL
+        );
+        Some(tokio::spawn(follow_joint_states(dr.clone(), sub)))
+    } else {
+        None
+    };
     tracing::info!(
         nodes,
         last_seq,
@@ -913,7 +942,63 @@ pub async fn start(bus: Bus, config: ServiceConfig) -> anyhow::Result<Running> {
         recovery,
         _services: services,
         publisher,
+        joints,
     })
+}
+
+/// Joint states are applied at most this often (50 Hz); the ones in between are skipped.
+pub const JOINT_STATES_MIN_INTERVAL: Duration = Duration::from_millis(20);
+
+/// Applies the measured joints of `body/joint_states` to the robot's joint edges, so that
+/// `dr/transform` of a hand or of the head camera follows the body. Each value enters the edge's
+/// history at the message's stamp (the bus clock of `joint_motor`; now if 0). Measurements are
+/// telemetry, not decisions: they are neither persisted nor published on `dr/changes`.
+/// Counters: `dr/joint_states_applied`, `dr/joint_states_skipped` (rate limit),
+/// `dr/unknown_joints` (a joint the model does not have, logged once a second).
+pub async fn follow_joint_states(
+    dr: Arc<Dr>,
+    sub: interfaces::bus::Subscriber<interfaces::msg::body::JointStates>,
+) {
+    let counters = dr.bus.counters().clone();
+    let mut last: Option<std::time::Instant> = None;
+    let mut unknown_log = interfaces::ratelimit::RateLimiter::new(Duration::from_secs(1));
+    while let Ok(msg) = sub.recv().await {
+        if last.is_some_and(|t| t.elapsed() < JOINT_STATES_MIN_INTERVAL) {
+            counters.incr("dr/joint_states_skipped");
+            continue;
+        }
+        last = Some(std::time::Instant::now());
+        let stamp = match msg.header.stamp_ns {
+            t if t > 0 => Stamp(t as u64),
+            _ => Stamp(dr.bus.clock().now_ns().max(0) as u64),
+        };
+        let mut unknown: Vec<&str> = Vec::new();
+        {
+            let mut live = dr.live.write().await;
+            for j in &msg.joints {
+                let applied = live
+                    .graph
+                    .joint_node(&j.name)
+                    .and_then(|id| live.graph.set_joint_id(id, j.position, stamp));
+                if applied.is_err() {
+                    unknown.push(&j.name);
+                }
+            }
+        }
+        counters.incr("dr/joint_states_applied");
+        if !unknown.is_empty() {
+            counters
+                .counter("dr/unknown_joints")
+                .fetch_add(unknown.len() as u64, std::sync::atomic::Ordering::Relaxed);
+            if let Some(suppressed) = unknown_log.allow(std::time::Instant::now()) {
+                tracing::warn!(
+                    suppressed,
+                    "joint states from `{}` name joints the model does not have (or non-finite values): {unknown:?}",
+                    msg.driver
+                );
+            }
+        }
+    }
 }
 
 /// The component: [`start`], serve until `shutdown`, write a final snapshot.

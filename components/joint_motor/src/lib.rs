@@ -51,16 +51,23 @@
 //! ```
 //!
 //! # Modules
-//! - [`types`]: the bus-facing serde structs (to move into `interfaces`).
+//! - [`types`]: the library's serde structs (with `Option`); their CDR-safe bus mirrors are
+//!   `interfaces::msg::body`, converted in [`bus`].
 //! - [`sim`]: first-order joints with velocity and acceleration saturation.
 //! - [`dynamixel`]: Dynamixel Protocol 2.0 codec, serial transport, X-series driver, TOML config.
 //! - [`stewart`]: the neck's pitch/roll/yaw ↔ three prismatic leg lengths.
 //! - [`neck`]: a driver wrapper presenting the three legs as pitch, roll and yaw joints.
+//! - [`home`]: the start postures (`rest`: arms hanging beside the body, head slightly down).
+//! - [`bus`]: conversions to and from the bus messages of `interfaces::msg::body` (one place).
+//! - [`component`]: the `joint_motor` process (`body/joint_states`, `body/joint_goal`).
 //! - `servo_sim` (tests, or feature `servo-sim`): a simulated X-series servo chain on a pty.
 
+pub mod bus;
+pub mod component;
 pub mod driver;
 pub mod dynamixel;
 pub mod error;
+pub mod home;
 pub mod neck;
 pub mod ownership;
 #[cfg(any(test, feature = "servo-sim"))]

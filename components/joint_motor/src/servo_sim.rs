@@ -141,6 +141,8 @@ pub struct ServoChain {
     shared: Arc<Shared>,
     stop: Arc<AtomicBool>,
     handle: Option<JoinHandle<()>>,
+    /// The line's far end, held open for a driver that opens it by path.
+    _slave: Option<std::os::fd::OwnedFd>,
 }
 
 impl std::fmt::Debug for ServoChain {
@@ -172,9 +174,30 @@ impl ServoChain {
         faults: Faults,
         seed: u64,
     ) -> std::io::Result<(Self, SerialPort)> {
+        let (chain, slave) = Self::spawn(ids, faults, seed)?;
+        Ok((chain, SerialPort::from_fd(slave, None)?))
+    }
+
+    /// Servos `ids` on a new pty; returns the chain and the path of the line's far end, for a
+    /// driver that opens it by name (`joint_motor --driver dynamixel --port <path>`).
+    pub fn spawn_on_pty_path(
+        ids: &[u8],
+        faults: Faults,
+        seed: u64,
+    ) -> std::io::Result<(Self, std::path::PathBuf)> {
+        let (mut chain, slave) = Self::spawn(ids, faults, seed)?;
+        let path = nix::unistd::ttyname(&slave)?;
+        chain._slave = Some(slave);
+        Ok((chain, path))
+    }
+
+    fn spawn(
+        ids: &[u8],
+        faults: Faults,
+        seed: u64,
+    ) -> std::io::Result<(Self, std::os::fd::OwnedFd)> {
         let pty = nix::pty::openpty(None, None)?;
         set_raw(&pty.slave, None)?;
-        let port = SerialPort::from_fd(pty.slave, None)?;
         let shared = Arc::new(Shared {
             servos: Mutex::new(ids.iter().map(|&id| (id, Servo::new(id))).collect()),
             faults: Mutex::new(faults),
@@ -193,8 +216,9 @@ impl ServoChain {
                 shared,
                 stop,
                 handle: Some(handle),
+                _slave: None,
             },
-            port,
+            pty.slave,
         ))
     }
 

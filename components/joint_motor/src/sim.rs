@@ -111,6 +111,41 @@ impl SimDriver {
         })
     }
 
+    /// Joints at rest at `start` (one position per spec, rad or m, each within its limits:
+    /// a start outside them is refused naming the joint and the limit).
+    pub fn new_at(
+        specs: Vec<JointSpec>,
+        params: SimParams,
+        start: &[f64],
+    ) -> Result<Self, JointError> {
+        let mut d = Self::new(specs, params)?;
+        if start.len() != d.specs.len() {
+            return Err(JointError::config(
+                "start",
+                format!("{} positions for {} joints", start.len(), d.specs.len()),
+            ));
+        }
+        let targets: Vec<JointTarget> = d
+            .specs
+            .iter()
+            .zip(start)
+            .map(|(s, &position)| JointTarget {
+                joint: s.name.clone(),
+                command: JointCommand::Position {
+                    position,
+                    max_speed: s.max_velocity,
+                },
+            })
+            .collect();
+        for c in check_targets(&d.specs, &targets)? {
+            d.joints[c.index].command = c.command;
+            if let JointCommand::Position { position, .. } = c.command {
+                d.joints[c.index].q = position;
+            }
+        }
+        Ok(d)
+    }
+
     /// Advances the simulation to `now_s`.
     fn advance(&mut self, now_s: f64) -> Result<(), JointError> {
         if !now_s.is_finite() {
@@ -252,6 +287,24 @@ mod tests {
                 )
             })
             .collect()
+    }
+
+    #[test]
+    fn starts_at_the_given_positions_and_refuses_a_start_beyond_a_limit() {
+        let mut d = SimDriver::new_at(arm(), SimParams::default(), &[0.5, 1.0, 0.02]).unwrap();
+        let s = d.read_state(0.0).unwrap();
+        assert_eq!(s[0].position, 0.5);
+        let s = d.read_state(1.0).unwrap();
+        assert_eq!(
+            s.iter().map(|j| j.position).collect::<Vec<_>>(),
+            [0.5, 1.0, 0.02],
+            "holds the start"
+        );
+        assert!(matches!(
+            SimDriver::new_at(arm(), SimParams::default(), &[0.0, 2.5, 0.0]),
+            Err(JointError::OutOfLimits { ref joint, limit: LimitKind::Upper, .. }) if joint == "elbow"
+        ));
+        assert!(SimDriver::new_at(arm(), SimParams::default(), &[0.0]).is_err());
     }
 
     #[test]

@@ -1,0 +1,917 @@
+//! The `body_inverse_kinematics` component: reach and gaze goals on the bus, solved with
+//! [`BodyIk`] from the measured joints and executed through `joint_motor`.
+//!
+//! # Bus
+//! - Subscribes `body/joint_states` (the measured joints: start of every solve, the posture of the
+//!   rest of the body for the self-collision check, and the "reached" test) and `body/reach`
+//!   ([`ReachGoal`]).
+//! - Calls `dr/transform` (the target frame into the body part's root frame; the target and the
+//!   root into `world` for the status) and `body/joint_goal` (the trajectory, as position goals).
+//! - Publishes `body/reach_status` ([`ReachStatus`]).
+//!
+//! # One goal per body part
+//! A new goal for a part replaces the previous one (which gets `Cancelled`); `active = false`
+//! cancels it (`Cancelled`) and releases the part's joints in `joint_motor`, so another client
+//! (the Executive's "home" goal) can take them. While a goal is active, its joints are owned by
+//! the client `<component>/<part>` (`body_inverse_kinematics/left_arm_7`) at `--priority`: they
+//! are commanded at `--stream-hz` while moving and every `1/--hold-hz` s once there, which keeps
+//! the lease. Two active parts sharing joints (`left_arm_7` and `left_arm_13`) conflict: the
+//! second fails with the owner named.
+//!
+//! # A goal's life
+//! 1. The target (`position_m`, and `orientation_xyzw` for a pose, in `frame`) is moved into the
+//!    chain's root frame with `dr/transform`; the IK solves it from the measured joints with a
+//!    `--solve-budget-ms` budget (off the async reactor). Tolerance: the goal's `tolerance_m`, or
+//!    `--tolerance-m` (1 cm); the IK itself aims at min(1 mm, tolerance).
+//! 2. No solution within the tolerance: `Unreachable` with the best residual, and nothing moves.
+//! 3. Otherwise `Moving` (with the residual), then a quintic trajectory from the measured joints
+//!    to the solution (peak speed `--speed-fraction` of each joint's URDF limit, at least
+//!    `min_duration_s`), streamed as position goals.
+//! 4. `Reached` once the trajectory is over and the tip, by forward kinematics of the measured
+//!    joints, is within tolerance of the target (a gaze: the target within tolerance of the
+//!    camera's optical axis; a pose: also within [`POSE_TOLERANCE_RAD`]). If it is not there
+//!    [`SETTLE_TIMEOUT_S`] after the trajectory ended: `Failed`.
+//! 5. `follow = true`: at `--follow-hz`, the target frame is looked up again; when it moved more
+//!    than `--follow-threshold-m`, the goal is solved again from the current joints (`Moving`,
+//!    then `Reached` again).
+//!
+//! `Failed` carries a detail for: an unknown body part, an unknown frame, the DR or `joint_motor`
+//! not answering, no joint states, a refused joint goal (with the joint, limit or owner).
+//!
+//! Frames and units: metres, radians; quaternions `[x, y, z, w]`; status positions in `world`.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use deep_representation::kinematics::{BODY_PARTS, BodyPart, Chain};
+use deep_representation::service::find_model;
+use interfaces::bus::{CallError, Publisher};
+use interfaces::msg::body::{
+    JointGoal, JointMode, JointStates, JointTarget, ReachGoal, ReachKind, ReachState, ReachStatus,
+};
+use interfaces::msg::dr::{Transform, TransformRequest};
+use interfaces::node::Interface;
+use interfaces::ratelimit::RateLimiter;
+use interfaces::{Bus, ErrorCode, Header, Shutdown, topics};
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+
+use crate::body::BodyIk;
+use crate::trajectory::Trajectory;
+use crate::types::{IkRequest, IkResult, IkTarget, UnreachableCause};
+
+/// Orientation tolerance of a reached pose (rad), on the measured joints.
+pub const POSE_TOLERANCE_RAD: f64 = 0.05;
+/// How long after its trajectory ended a part may take to settle within tolerance (s).
+pub const SETTLE_TIMEOUT_S: f64 = 3.0;
+/// Joint states older than this (s) are not used to start a solve.
+pub const STALE_JOINT_STATES_S: f64 = 0.5;
+
+/// The component's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// The robot's URDF (default: models/loki.urdf, found above the binary or the working folder,
+    /// as deep_representation does). Must be the one joint_motor and the DR use.
+    #[arg(long, env = "ROBOCOG_URDF")]
+    pub urdf: Option<PathBuf>,
+    /// Default position tolerance (m) of a goal that gives none.
+    #[arg(long, default_value_t = 0.01)]
+    pub tolerance_m: f64,
+    /// Compute-time budget of one IK solve (ms), random restarts included.
+    #[arg(long, default_value_t = 20.0)]
+    pub solve_budget_ms: f64,
+    /// Rate (Hz) of the position goals streamed along a trajectory.
+    #[arg(long, default_value_t = 50.0)]
+    pub stream_hz: f64,
+    /// Rate (Hz) of the goals that hold a part at its solution (keeps the joints' lease).
+    #[arg(long, default_value_t = 5.0)]
+    pub hold_hz: f64,
+    /// Rate (Hz) at which a followed target frame is looked up.
+    #[arg(long, default_value_t = 10.0)]
+    pub follow_hz: f64,
+    /// A followed target is solved again when it moved more than this (m).
+    #[arg(long, default_value_t = 0.02)]
+    pub follow_threshold_m: f64,
+    /// Peak joint speed of a trajectory, as a fraction of each joint's URDF velocity limit.
+    #[arg(long, default_value_t = 0.5)]
+    pub speed_fraction: f64,
+    /// Priority of this component's joint goals in joint_motor (higher preempts).
+    #[arg(long, default_value_t = 0)]
+    pub priority: u8,
+    /// Time-out of each call to dr/transform and body/joint_goal (ms).
+    #[arg(long, default_value_t = 250)]
+    pub call_timeout_ms: u64,
+}
+
+impl Config {
+    fn check(&self) -> anyhow::Result<()> {
+        let positive = [
+            ("--tolerance-m", self.tolerance_m),
+            ("--stream-hz", self.stream_hz),
+            ("--hold-hz", self.hold_hz),
+            ("--follow-hz", self.follow_hz),
+            ("--follow-threshold-m", self.follow_threshold_m),
+            ("--speed-fraction", self.speed_fraction),
+        ];
+        for (flag, v) in positive {
+            anyhow::ensure!(v.is_finite() && v > 0.0, "{flag} must be > 0, got {v}");
+        }
+        anyhow::ensure!(
+            self.solve_budget_ms.is_finite() && self.solve_budget_ms >= 0.0,
+            "--solve-budget-ms must be >= 0"
+        );
+        anyhow::ensure!(
+            self.speed_fraction <= 1.0,
+            "--speed-fraction must be at most 1"
+        );
+        Ok(())
+    }
+}
+
+/// What the component declares for `--describe`.
+pub fn interface() -> Interface {
+    Interface::new("body_inverse_kinematics")
+        .subscribes(&topics::BODY_JOINT_STATES)
+        .subscribes(&topics::BODY_REACH)
+        .publishes(&topics::BODY_REACH_STATUS)
+        .calls(&topics::DR_TRANSFORM)
+        .calls(&topics::BODY_JOINT_GOAL)
+}
+
+// ---------------------------------------------------------------- pure helpers
+
+/// `target_T_source` of a DR transform message (the quaternion is normalised; a zero one is the
+/// identity).
+pub fn iso_from_msg(t: &Transform) -> Isometry3<f64> {
+    let [x, y, z, w] = t.rotation_xyzw;
+    let q = Quaternion::new(w, x, y, z);
+    let r = if q.norm() > 1e-12 {
+        UnitQuaternion::from_quaternion(q)
+    } else {
+        UnitQuaternion::identity()
+    };
+    let [tx, ty, tz] = t.translation_m;
+    Isometry3::from_parts(Translation3::new(tx, ty, tz), r)
+}
+
+/// How far the tip frame `tip` is from the target (both in the same frame): for a position or a
+/// pose, the distance between origins (m) and, for a pose, the rotation angle between them (rad,
+/// else 0); for a gaze, the distance from the target point to the tip's optical axis (+z) ray
+/// (m; to the camera centre when the point is behind it) and the angle between the axis and the
+/// direction to the point (rad).
+pub fn tip_error(kind: ReachKind, tip: &Isometry3<f64>, target: &Isometry3<f64>) -> (f64, f64) {
+    let p = target.translation.vector;
+    let o = tip.translation.vector;
+    match kind {
+        ReachKind::Position => ((p - o).norm(), 0.0),
+        ReachKind::Pose => ((p - o).norm(), tip.rotation.angle_to(&target.rotation)),
+        ReachKind::Gaze => {
+            let axis = tip.rotation * Vector3::z();
+            let v = p - o;
+            let along = v.dot(&axis);
+            let angle = if v.norm() > 1e-12 {
+                axis.angle(&v)
+            } else {
+                0.0
+            };
+            if along <= 0.0 {
+                (v.norm(), angle)
+            } else {
+                ((v - axis * along).norm(), angle)
+            }
+        }
+    }
+}
+
+/// The chain's joint values from measured positions, or the first joint missing.
+pub fn chain_q(chain: &Chain, measured: &HashMap<String, f64>) -> Result<Vec<f64>, String> {
+    chain
+        .joints
+        .iter()
+        .map(|j| measured.get(&j.name).copied().ok_or_else(|| j.name.clone()))
+        .collect()
+}
+
+/// The IK target for a goal whose target pose is `target` in the chain's root frame.
+pub fn ik_target(kind: ReachKind, target: &Isometry3<f64>) -> IkTarget {
+    let p = target.translation.vector;
+    let position_m = [p.x, p.y, p.z];
+    match kind {
+        ReachKind::Position => IkTarget::Position { position_m },
+        ReachKind::Pose => {
+            let q = target.rotation.coords;
+            IkTarget::Pose {
+                position_m,
+                orientation_xyzw: [q.x, q.y, q.z, q.w],
+            }
+        }
+        ReachKind::Gaze => IkTarget::Gaze {
+            point_m: position_m,
+        },
+    }
+}
+
+/// The pose of a goal's target in its own `frame` (a pose goal's orientation; identity otherwise).
+pub fn goal_pose(goal: &ReachGoal) -> Result<Isometry3<f64>, String> {
+    let [x, y, z] = goal.position_m;
+    if ![x, y, z].iter().all(|v| v.is_finite()) {
+        return Err(format!("position_m {:?} is not finite", goal.position_m));
+    }
+    let rotation = if goal.kind == ReachKind::Pose {
+        let [qx, qy, qz, qw] = goal.orientation_xyzw;
+        let q = Quaternion::new(qw, qx, qy, qz);
+        if !(q.norm().is_finite() && q.norm() > 1e-9) {
+            return Err(format!(
+                "orientation_xyzw {:?} is not a rotation",
+                goal.orientation_xyzw
+            ));
+        }
+        UnitQuaternion::from_quaternion(q)
+    } else {
+        UnitQuaternion::identity()
+    };
+    Ok(Isometry3::from_parts(Translation3::new(x, y, z), rotation))
+}
+
+fn xyz(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+// ---------------------------------------------------------------- the component
+
+/// A solved goal in motion (or holding at its solution).
+#[derive(Debug)]
+struct Plan {
+    trajectory: Trajectory,
+    started: Instant,
+    residual_m: f64,
+    reached: bool,
+    settle_failed: bool,
+    last_sent: Option<Instant>,
+}
+
+/// The active goal of one body part.
+#[derive(Debug)]
+struct Active {
+    goal: ReachGoal,
+    part: &'static BodyPart,
+    chain: Chain,
+    /// URDF velocity limits of the chain's joints (rad/s or m/s).
+    vmax: Vec<f64>,
+    tolerance_m: f64,
+    /// The target in the chain's root frame (as last solved).
+    target_root: Isometry3<f64>,
+    target_world: Isometry3<f64>,
+    world_t_root: Isometry3<f64>,
+    plan: Option<Plan>,
+    last_follow: Instant,
+    /// Set while the goal waits for fresh joint states (just after start, or joint_motor away):
+    /// it fails after [`STALE_JOINT_STATES_S`].
+    waiting_since: Option<Instant>,
+}
+
+/// Why a goal could not run.
+struct Failure(String);
+
+impl From<String> for Failure {
+    fn from(s: String) -> Self {
+        Failure(s)
+    }
+}
+
+struct Ik {
+    bus: Bus,
+    config: Config,
+    /// `None` only while a solve runs on the blocking pool.
+    body: Option<BodyIk>,
+    measured: HashMap<String, f64>,
+    measured_at: Option<Instant>,
+    parts: HashMap<String, Active>,
+    status: Publisher<ReachStatus>,
+    timeout: Duration,
+    warn: RateLimiter,
+}
+
+fn call_failure(what: &str, e: &CallError) -> String {
+    match e {
+        CallError::NoServer(_) | CallError::Timeout { .. } => {
+            format!("{what}: unreachable ({e})")
+        }
+        other => format!("{what}: {other}"),
+    }
+}
+
+impl Ik {
+    fn client(&self, part: &str) -> String {
+        format!("{}/{part}", self.bus.component())
+    }
+
+    async fn publish(&self, status: ReachStatus) {
+        let mut status = status;
+        if let Err(e) = self.status.publish(&mut status).await {
+            tracing::warn!("could not publish a reach status: {e}");
+        }
+    }
+
+    fn status(goal: &ReachGoal, state: ReachState, detail: impl Into<String>) -> ReachStatus {
+        ReachStatus {
+            header: Header::new("world"),
+            id: goal.id,
+            body_part: goal.body_part.clone(),
+            state,
+            residual_m: 0.0,
+            distance_m: -1.0,
+            target_world_m: [0.0; 3],
+            tip_world_m: [0.0; 3],
+            detail: detail.into(),
+        }
+    }
+
+    /// A status of an active goal, with the tip and its distance from the measured joints.
+    fn active_status(
+        &self,
+        a: &Active,
+        state: ReachState,
+        detail: impl Into<String>,
+    ) -> ReachStatus {
+        let mut s = Self::status(&a.goal, state, detail);
+        s.target_world_m = xyz(&a.target_world.translation.vector);
+        s.residual_m = a.plan.as_ref().map_or(0.0, |p| p.residual_m);
+        if let Some((tip_root, dist)) = self.measured_tip(a) {
+            s.distance_m = dist;
+            s.tip_world_m = xyz(&(a.world_t_root * tip_root).translation.vector);
+        }
+        s
+    }
+
+    /// The tip in the root frame from the measured joints, and its error to the target (m).
+    fn measured_tip(&self, a: &Active) -> Option<(Isometry3<f64>, f64)> {
+        let q = chain_q(&a.chain, &self.measured).ok()?;
+        let tip = a.chain.fk(&q).ok()?;
+        Some((tip, tip_error(a.goal.kind, &tip, &a.target_root).0))
+    }
+
+    async fn transform(&self, target: &str, source: &str) -> Result<Isometry3<f64>, Failure> {
+        let req = TransformRequest {
+            header: Header::default(),
+            target: target.to_owned(),
+            source: source.to_owned(),
+            stamp_ns: 0,
+        };
+        match self
+            .bus
+            .call(&topics::DR_TRANSFORM, &req, self.timeout)
+            .await
+        {
+            Ok(rep) => Ok(iso_from_msg(&rep.transform)),
+            Err(CallError::Remote(e)) if e.code == ErrorCode::NotFound => Err(Failure(format!(
+                "unknown frame: the deep representation has no transform {target} <- {source} ({})",
+                e.message
+            ))),
+            Err(e) => Err(Failure(call_failure(
+                "deep_representation (dr/transform)",
+                &e,
+            ))),
+        }
+    }
+
+    async fn send(&self, goal: &JointGoal) -> Result<(), Failure> {
+        match self
+            .bus
+            .call(&topics::BODY_JOINT_GOAL, goal, self.timeout)
+            .await
+        {
+            Ok(rep) if rep.accepted => Ok(()),
+            Ok(rep) => {
+                self.bus.counters().incr("joint_goals_refused");
+                Err(Failure(format!(
+                    "joint_motor refused the joints: {}",
+                    rep.detail
+                )))
+            }
+            Err(e) => Err(Failure(call_failure("joint_motor (body/joint_goal)", &e))),
+        }
+    }
+
+    async fn release(&self, part: &str) {
+        let goal = JointGoal {
+            client: self.client(part),
+            release: true,
+            ..Default::default()
+        };
+        if let Err(Failure(e)) = self.send(&goal).await {
+            tracing::warn!("could not release the joints of {part}: {e}");
+        }
+    }
+
+    /// A reach goal arrived.
+    async fn on_goal(&mut self, goal: ReachGoal) {
+        self.bus.counters().incr("goals");
+        if let Some(old) = self.parts.remove(&goal.body_part) {
+            let detail = if goal.active {
+                format!("replaced by goal {}", goal.id)
+            } else {
+                "cancelled".to_owned()
+            };
+            tracing::info!(part = %goal.body_part, id = old.goal.id, "{detail}");
+            let s = self.active_status(&old, ReachState::Cancelled, detail);
+            self.publish(s).await;
+        }
+        if !goal.active {
+            self.release(&goal.body_part).await;
+            return;
+        }
+        let part = match BodyPart::find(&goal.body_part) {
+            Ok(p) => p,
+            Err(_) => {
+                let known: Vec<&str> = BODY_PARTS.iter().map(|p| p.name).collect();
+                let detail = format!("unknown body part `{}` (known: {known:?})", goal.body_part);
+                self.fail(&goal, detail).await;
+                return;
+            }
+        };
+        let chain = match self.body.as_ref().map(|b| b.model().body_part(part.name)) {
+            Some(Ok(c)) => c,
+            Some(Err(e)) => {
+                self.fail(&goal, format!("body part `{}`: {e}", part.name))
+                    .await;
+                return;
+            }
+            None => return,
+        };
+        let tolerance_m = if goal.tolerance_m > 0.0 && goal.tolerance_m.is_finite() {
+            goal.tolerance_m
+        } else {
+            self.config.tolerance_m
+        };
+        let vmax = chain.limits().iter().map(|l| l.velocity).collect();
+        let mut active = Active {
+            goal,
+            part,
+            chain,
+            vmax,
+            tolerance_m,
+            target_root: Isometry3::identity(),
+            target_world: Isometry3::identity(),
+            world_t_root: Isometry3::identity(),
+            plan: None,
+            last_follow: Instant::now(),
+            waiting_since: None,
+        };
+        tracing::info!(
+            part = %active.goal.body_part,
+            id = active.goal.id,
+            kind = ?active.goal.kind,
+            frame = %active.goal.frame,
+            position = ?active.goal.position_m,
+            follow = active.goal.follow,
+            "new goal"
+        );
+        match self.locate(&mut active).await {
+            Ok(()) => {}
+            Err(Failure(detail)) => {
+                self.fail(&active.goal, detail).await;
+                return;
+            }
+        }
+        if !self.fresh() {
+            // Solved by a tick once joint states arrive (or failed after a while).
+            active.waiting_since = Some(Instant::now());
+            self.parts.insert(active.goal.body_part.clone(), active);
+            return;
+        }
+        if self.solve(&mut active).await {
+            self.parts.insert(active.goal.body_part.clone(), active);
+        } else {
+            // Over (unreachable or failed): nothing of this part stays owned.
+            self.release(&active.goal.body_part).await;
+        }
+    }
+
+    async fn fail(&self, goal: &ReachGoal, detail: String) {
+        self.bus.counters().incr("goals_failed");
+        tracing::warn!(part = %goal.body_part, id = goal.id, "failed: {detail}");
+        self.publish(Self::status(goal, ReachState::Failed, detail))
+            .await;
+    }
+
+    /// Looks the target up in the DR: into the root frame, and into `world` for the status.
+    async fn locate(&self, a: &mut Active) -> Result<(), Failure> {
+        let in_frame = goal_pose(&a.goal).map_err(|e| Failure(format!("invalid goal: {e}")))?;
+        let root_t_frame = self.transform(a.part.root, &a.goal.frame).await?;
+        let world_t_frame = self.transform("world", &a.goal.frame).await?;
+        a.world_t_root = self.transform("world", a.part.root).await?;
+        a.target_root = root_t_frame * in_frame;
+        a.target_world = world_t_frame * in_frame;
+        Ok(())
+    }
+
+    /// Solves the goal from the measured joints. `Moving` and a plan, or `Unreachable` / `Failed`.
+    /// Returns whether the goal stays active.
+    fn fresh(&self) -> bool {
+        self.measured_at
+            .is_some_and(|t| t.elapsed().as_secs_f64() < STALE_JOINT_STATES_S)
+    }
+
+    async fn solve(&mut self, a: &mut Active) -> bool {
+        if !self.fresh() {
+            let detail = format!(
+                "no joint states on {} for {STALE_JOINT_STATES_S} s: is joint_motor running?",
+                topics::BODY_JOINT_STATES.name()
+            );
+            self.fail(&a.goal, detail).await;
+            return false;
+        }
+        let q_now = match chain_q(&a.chain, &self.measured) {
+            Ok(q) => q,
+            Err(joint) => {
+                self.fail(&a.goal, format!("joint states have no joint `{joint}`"))
+                    .await;
+                return false;
+            }
+        };
+        let Some(mut body) = self.body.take() else {
+            return false;
+        };
+        for (name, &v) in &self.measured {
+            // Joints the model lacks are counted by the DR; here they are simply not used.
+            let _ = body.set_joint(name, v);
+        }
+        let mut req = IkRequest::new(a.part.name, ik_target(a.goal.kind, &a.target_root));
+        req.tolerance_m = a.tolerance_m.min(1e-3);
+        req.max_time_s = self.config.solve_budget_ms * 1e-3;
+        req.q_start = Some(q_now.clone());
+        req.seed = a.goal.id;
+        let started = Instant::now();
+        let joined = tokio::task::spawn_blocking(move || {
+            let r = body.solve(&req);
+            (body, r)
+        })
+        .await;
+        let (body, result) = match joined {
+            Ok(x) => x,
+            Err(e) => {
+                // The model is lost with the task: rebuild it before anything else.
+                tracing::error!("the IK task failed: {e}");
+                self.body = self.reload();
+                self.fail(&a.goal, format!("the IK solver failed: {e}"))
+                    .await;
+                return false;
+            }
+        };
+        let solve_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.body = Some(body);
+        let result = match result {
+            Ok(r) => r,
+            Err(e) => {
+                self.fail(&a.goal, format!("IK request refused: {e}")).await;
+                return false;
+            }
+        };
+        // A best attempt within the goal's (looser) tolerance is good enough, if collision-free.
+        let (q, residual_m) = match result {
+            IkResult::Reached { q, residual_m, .. } => (q, residual_m),
+            IkResult::Unreachable {
+                best_q,
+                residual_m,
+                cause: UnreachableCause::OutOfTolerance,
+                ..
+            } if residual_m <= a.tolerance_m
+                && a.goal.kind != ReachKind::Pose
+                && self.collision_free(a.part.name, &best_q) =>
+            {
+                (best_q, residual_m)
+            }
+            IkResult::Unreachable {
+                residual_m, cause, ..
+            } => {
+                self.bus.counters().incr("unreachable");
+                let why = match cause {
+                    UnreachableCause::OutOfTolerance => "no configuration within the joint limits",
+                    UnreachableCause::SelfCollision => {
+                        "every configuration within tolerance collides with the body"
+                    }
+                };
+                let detail = format!(
+                    "{why}: best residual {residual_m:.3} m (tolerance {:.3} m), solved in {solve_ms:.1} ms",
+                    a.tolerance_m
+                );
+                tracing::info!(part = %a.goal.body_part, id = a.goal.id, "unreachable: {detail}");
+                let mut s = self.active_status(a, ReachState::Unreachable, detail);
+                s.residual_m = residual_m;
+                self.publish(s).await;
+                if a.goal.follow {
+                    // Keep following: the target may come within reach. Nothing moves meanwhile.
+                    a.plan = None;
+                    return true;
+                }
+                return false;
+            }
+        };
+        let vmax: Vec<f64> = a
+            .vmax
+            .iter()
+            .map(|v| v * self.config.speed_fraction)
+            .collect();
+        let trajectory = match Trajectory::quintic(&q_now, &q, &vmax, None, a.goal.min_duration_s) {
+            Ok(t) => t,
+            Err(e) => {
+                self.fail(&a.goal, format!("no trajectory to the solution: {e}"))
+                    .await;
+                return false;
+            }
+        };
+        tracing::info!(
+            part = %a.goal.body_part,
+            id = a.goal.id,
+            "moving: residual {:.2} mm, solved in {solve_ms:.1} ms, trajectory {:.2} s",
+            residual_m * 1e3,
+            trajectory.duration_s()
+        );
+        a.plan = Some(Plan {
+            trajectory,
+            started: Instant::now(),
+            residual_m,
+            reached: false,
+            settle_failed: false,
+            last_sent: None,
+        });
+        let s = self.active_status(a, ReachState::Moving, "");
+        self.publish(s).await;
+        self.bus.counters().incr("solved");
+        true
+    }
+
+    fn collision_free(&mut self, part: &str, q: &[f64]) -> bool {
+        self.body
+            .as_mut()
+            .and_then(|b| b.self_collision(part, q).ok())
+            .is_some_and(|c| c.is_none())
+    }
+
+    fn reload(&self) -> Option<BodyIk> {
+        let urdf = find_model(self.config.urdf.as_deref(), "loki.urdf");
+        BodyIk::from_urdf_file(&urdf).ok()
+    }
+
+    /// One tick of the stream: every active part streams, holds, checks "reached", follows.
+    async fn tick(&mut self) {
+        let names: Vec<String> = self.parts.keys().cloned().collect();
+        for name in names {
+            let Some(mut a) = self.parts.remove(&name) else {
+                continue;
+            };
+            let keep = match self.step(&mut a).await {
+                Ok(keep) => keep,
+                Err(Failure(detail)) => {
+                    self.bus.counters().incr("goals_failed");
+                    tracing::warn!(part = %a.goal.body_part, id = a.goal.id, "failed: {detail}");
+                    let s = self.active_status(&a, ReachState::Failed, detail);
+                    self.publish(s).await;
+                    false
+                }
+            };
+            if keep {
+                self.parts.insert(name, a);
+            } else {
+                self.release(&name).await;
+            }
+        }
+    }
+
+    async fn step(&mut self, a: &mut Active) -> Result<bool, Failure> {
+        let now = Instant::now();
+        if let Some(since) = a.waiting_since {
+            if self.fresh() {
+                a.waiting_since = None;
+                return Ok(self.solve(a).await);
+            }
+            if now.duration_since(since).as_secs_f64() < 2.0 * STALE_JOINT_STATES_S {
+                return Ok(true);
+            }
+            return Err(Failure(format!(
+                "no joint states on {}: is joint_motor running?",
+                topics::BODY_JOINT_STATES.name()
+            )));
+        }
+        let period = 1.0 / self.config.stream_hz;
+        if let Some(plan) = a.plan.as_mut() {
+            let t = now.duration_since(plan.started).as_secs_f64();
+            let moving = t <= plan.trajectory.duration_s() + period;
+            let hold_due = plan
+                .last_sent
+                .is_none_or(|s| now.duration_since(s).as_secs_f64() >= 1.0 / self.config.hold_hz);
+            if moving || hold_due {
+                let mut q = vec![0.0; plan.trajectory.dof()];
+                plan.trajectory.sample_into(t + period, &mut q, None);
+                plan.last_sent = Some(now);
+                let goal = JointGoal {
+                    header: Header::default(),
+                    client: self.client(&a.goal.body_part),
+                    priority: self.config.priority,
+                    targets: a
+                        .chain
+                        .joints
+                        .iter()
+                        .zip(q.iter().zip(&a.vmax))
+                        .map(|(j, (&position, &max_speed))| JointTarget {
+                            joint: j.name.clone(),
+                            mode: JointMode::Position,
+                            position,
+                            max_speed,
+                            velocity: 0.0,
+                        })
+                        .collect(),
+                    release: false,
+                };
+                self.send(&goal).await?;
+            }
+            if !moving && !plan.reached && !plan.settle_failed {
+                let err = self.measured_tip(a).map(|(_, d)| d);
+                let Some(plan) = a.plan.as_mut() else {
+                    return Ok(true);
+                };
+                match err {
+                    Some(d) if d <= a.tolerance_m => {
+                        plan.reached = true;
+                        self.bus.counters().incr("reached");
+                        let s = self.active_status(a, ReachState::Reached, "");
+                        tracing::info!(
+                            part = %a.goal.body_part,
+                            id = a.goal.id,
+                            "reached: tip {:.1} mm from the target",
+                            s.distance_m * 1e3
+                        );
+                        self.publish(s).await;
+                    }
+                    _ if t > plan.trajectory.duration_s() + SETTLE_TIMEOUT_S => {
+                        plan.settle_failed = true;
+                        let detail = format!(
+                            "the measured joints did not bring the tip within {:.3} m of the target {SETTLE_TIMEOUT_S} s after the trajectory ended (now {})",
+                            a.tolerance_m,
+                            err.map_or("unknown".to_owned(), |d| format!("{d:.3} m"))
+                        );
+                        if !a.goal.follow {
+                            return Err(Failure(detail));
+                        }
+                        let s = self.active_status(a, ReachState::Failed, detail);
+                        self.publish(s).await;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        if a.goal.follow
+            && now.duration_since(a.last_follow).as_secs_f64() >= 1.0 / self.config.follow_hz
+        {
+            a.last_follow = now;
+            let before = (a.target_root, a.target_world, a.world_t_root);
+            let had_plan = a.plan.is_some();
+            self.locate(a).await?;
+            let moved = (a.target_root.translation.vector - before.0.translation.vector).norm();
+            if moved > self.config.follow_threshold_m || (!had_plan && moved > 1e-6) {
+                tracing::debug!(part = %a.goal.body_part, "target moved {moved:.3} m: solving again");
+                self.bus.counters().incr("follow_resolves");
+                return Ok(self.solve(a).await);
+            }
+            // A move within the threshold is ignored: the goal stays the target it was solved for.
+            (a.target_root, a.target_world, a.world_t_root) = before;
+        }
+        Ok(true)
+    }
+
+    fn on_states(&mut self, states: &JointStates) {
+        for j in &states.joints {
+            if j.position.is_finite() {
+                self.measured.insert(j.name.clone(), j.position);
+            } else {
+                self.bus.counters().incr("non_finite_joint_states");
+                if let Some(suppressed) = self.warn.allow(Instant::now()) {
+                    tracing::warn!(suppressed, "joint `{}` reported {}", j.name, j.position);
+                }
+            }
+        }
+        self.measured_at = Some(Instant::now());
+    }
+}
+
+/// Runs the component until shutdown.
+pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    config.check()?;
+    let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
+    let body = BodyIk::from_urdf_file(&urdf)
+        .with_context(|| format!("loading the robot model {}", urdf.display()))?;
+    let states = bus.subscriber(&topics::BODY_JOINT_STATES).await?;
+    let goals = bus.subscriber(&topics::BODY_REACH).await?;
+    let status = bus.publisher(&topics::BODY_REACH_STATUS).await?;
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.stream_hz));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    tracing::info!(
+        urdf = %urdf.display(),
+        "body_inverse_kinematics ready: goals on {}, status on {}",
+        topics::BODY_REACH.name(),
+        topics::BODY_REACH_STATUS.name()
+    );
+    let mut ik = Ik {
+        timeout: Duration::from_millis(config.call_timeout_ms),
+        bus,
+        config,
+        body: Some(body),
+        measured: HashMap::new(),
+        measured_at: None,
+        parts: HashMap::new(),
+        status,
+        warn: RateLimiter::new(Duration::from_secs(1)),
+    };
+    loop {
+        tokio::select! {
+            biased;
+            _ = shutdown.wait() => break,
+            g = goals.recv() => ik.on_goal(g?).await,
+            s = states.recv() => {
+                let mut s = s?;
+                while let Some(newer) = states.try_recv() {
+                    s = newer;
+                }
+                ik.on_states(&s);
+            }
+            _ = tick.tick() => ik.tick().await,
+        }
+    }
+    // Give the joints back so that nothing stays owned by a component that is gone.
+    let parts: Vec<String> = ik.parts.keys().cloned().collect();
+    for p in parts {
+        ik.release(&p).await;
+    }
+    tracing::info!("stopped");
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaze_error_is_the_distance_to_the_optical_axis() {
+        let cam = Isometry3::identity();
+        let on_axis = Isometry3::translation(0.0, 0.0, 2.0);
+        assert!(tip_error(ReachKind::Gaze, &cam, &on_axis).0 < 1e-12);
+        let off = Isometry3::translation(0.05, 0.0, 1.0);
+        let (d, a) = tip_error(ReachKind::Gaze, &cam, &off);
+        assert!((d - 0.05).abs() < 1e-12 && (a - 0.05f64.atan()).abs() < 1e-9);
+        let behind = Isometry3::translation(0.0, 0.3, -0.4);
+        assert!((tip_error(ReachKind::Gaze, &cam, &behind).0 - 0.5).abs() < 1e-12);
+        let (d, r) = tip_error(
+            ReachKind::Position,
+            &cam,
+            &Isometry3::translation(0.3, 0.4, 0.0),
+        );
+        assert!((d - 0.5).abs() < 1e-12 && r == 0.0);
+    }
+
+    #[test]
+    fn goal_poses_and_transform_messages_convert() {
+        let mut g = ReachGoal {
+            position_m: [0.1, 0.2, 0.3],
+            ..Default::default()
+        };
+        assert_eq!(
+            goal_pose(&g).unwrap().translation.vector,
+            Vector3::new(0.1, 0.2, 0.3)
+        );
+        g.kind = ReachKind::Pose;
+        assert!(goal_pose(&g).is_err(), "a zero quaternion is no rotation");
+        g.orientation_xyzw = [0.0, 0.0, 1.0, 1.0];
+        let p = goal_pose(&g).unwrap();
+        assert!((p.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        g.position_m[0] = f64::NAN;
+        assert!(goal_pose(&g).is_err());
+        let t = Transform {
+            translation_m: [1.0, 0.0, 0.0],
+            rotation_xyzw: [0.0, 0.0, 0.0, 0.0],
+        };
+        assert_eq!(iso_from_msg(&t), Isometry3::translation(1.0, 0.0, 0.0));
+        assert!(matches!(
+            ik_target(ReachKind::Gaze, &Isometry3::translation(1.0, 2.0, 3.0)),
+            IkTarget::Gaze {
+                point_m: [1.0, 2.0, 3.0]
+            }
+        ));
+    }
+
+    #[test]
+    fn chain_values_come_from_the_measured_joints() {
+        let body = BodyIk::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap();
+        let chain = body.model().body_part("neck").unwrap();
+        let mut measured: HashMap<String, f64> =
+            chain.joints.iter().map(|j| (j.name.clone(), 0.1)).collect();
+        assert_eq!(chain_q(&chain, &measured).unwrap(), vec![0.1; chain.dof()]);
+        measured.remove("neck_pitch");
+        assert_eq!(chain_q(&chain, &measured).unwrap_err(), "neck_pitch");
+    }
+}

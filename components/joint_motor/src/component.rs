@@ -1,0 +1,460 @@
+//! The `joint_motor` component: a [`JointMotor`] (driver + ownership rule) on the bus.
+//!
+//! Publishes `body/joint_states` ([`interfaces::msg::body::JointStates`]) at `--rate-hz`
+//! (default 100 Hz): every joint of the driver, with its owner (empty: nobody) and the driver's
+//! name, stamped with the bus clock.
+//!
+//! Serves `body/joint_goal` ([`interfaces::msg::body::JointGoal`] →
+//! [`interfaces::msg::body::JointGoalReply`]): a goal is accepted or refused as a whole, with
+//! the typed reason, the joint, the limit, the value requested and the owner (see the crate docs,
+//! "Ownership"). `release = true` gives joints back. A refusal is a normal reply, counted on
+//! `diagnostics` per reason (`refused/<reason>`), never a service error.
+//!
+//! Joints: every movable joint of the URDF (`--urdf`, default `models/loki.urdf` found as the
+//! deep representation finds it), with the URDF's position and velocity limits; URDF has no
+//! acceleration limit, so each joint may reach its maximum velocity in `--accel-time-s`.
+//! With `--driver dynamixel`, only the joints mapped in `--servo-config` are driven.
+//!
+//! Time: the drivers run on the process's monotonic clock (seconds since start); messages carry
+//! the bus clock.
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use deep_representation::kinematics::{JointKind as UrdfKind, RobotModel};
+use deep_representation::service::find_model;
+use interfaces::msg::body as m;
+use interfaces::node::Interface;
+use interfaces::ratelimit::RateLimiter;
+use interfaces::{Bus, Shutdown, topics};
+
+use crate::bus::{self, Request};
+use crate::driver::JointDriver;
+use crate::home::Home;
+use crate::ownership::JointMotor;
+use crate::sim::{SimDriver, SimParams};
+use crate::types::{JointCommand, JointGoal, JointRelease, JointSpec, JointTarget};
+
+/// The component's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// Which driver moves the joints: `sim` (simulated joints, no hardware) or `dynamixel`
+    /// (X-series servos, Protocol 2.0 over a serial port; needs --servo-config).
+    #[arg(long, default_value = "sim", value_parser = ["sim", "dynamixel"])]
+    pub driver: String,
+    /// The robot's URDF: the joints and their limits (default: models/loki.urdf, found above the
+    /// binary or the working folder, as deep_representation does).
+    #[arg(long, env = "ROBOCOG_URDF")]
+    pub urdf: Option<PathBuf>,
+    /// Joint states publication rate (Hz).
+    #[arg(long, default_value_t = 100.0)]
+    pub rate_hz: f64,
+    /// A client keeps its joints this long (s) after its last goal naming them.
+    #[arg(long, default_value_t = 1.0)]
+    pub lease_s: f64,
+    /// Start posture: `rest` (arms hanging beside the body, head ahead 17° down; see
+    /// `joint_motor::home`), `zero`, or `none` (command nothing at start).
+    #[arg(long, value_enum, default_value_t = Home::Rest)]
+    pub home: Home,
+    /// Time (s) for a joint to reach its maximum velocity from rest: the acceleration limit is
+    /// the URDF velocity limit divided by this.
+    #[arg(long, default_value_t = 0.25)]
+    pub accel_time_s: f64,
+    /// Optional TOML file of the sim driver (`time_constant_s`, `substep_s`).
+    #[arg(long)]
+    pub sim_config: Option<PathBuf>,
+    /// Dynamixel: the servo map, a TOML file (port, baud, time-outs, `[joints.<name>]` id, sign,
+    /// offset_rad; see `joint_motor::dynamixel::config`).
+    #[arg(long)]
+    pub servo_config: Option<PathBuf>,
+    /// Dynamixel: the serial device, overriding the servo map's `port`.
+    #[arg(long)]
+    pub port: Option<String>,
+    /// Dynamixel: speed (rad/s) of the move to the start posture.
+    #[arg(long, default_value_t = 0.3)]
+    pub home_speed: f64,
+}
+
+/// What the component declares for `--describe`.
+pub fn interface() -> Interface {
+    Interface::new("joint_motor")
+        .publishes(&topics::BODY_JOINT_STATES)
+        .serves(&topics::BODY_JOINT_GOAL)
+}
+
+/// The driver's joint specs for every movable joint of `model` (URDF position and velocity
+/// limits; acceleration = velocity / `accel_time_s`).
+pub fn specs_from_model(model: &RobotModel, accel_time_s: f64) -> anyhow::Result<Vec<JointSpec>> {
+    anyhow::ensure!(
+        accel_time_s.is_finite() && accel_time_s > 0.0,
+        "--accel-time-s must be > 0, got {accel_time_s}"
+    );
+    let mut specs = Vec::new();
+    for j in &model.joints {
+        let l = j.limits;
+        let spec = match j.kind {
+            UrdfKind::Fixed => continue,
+            UrdfKind::Continuous => anyhow::bail!(
+                "joint `{}` is continuous: joint_motor needs position limits on every joint",
+                j.name
+            ),
+            UrdfKind::Revolute => JointSpec::revolute(
+                &j.name,
+                l.lower,
+                l.upper,
+                l.velocity,
+                l.velocity / accel_time_s,
+            ),
+            UrdfKind::Prismatic => JointSpec::prismatic(
+                &j.name,
+                l.lower,
+                l.upper,
+                l.velocity,
+                l.velocity / accel_time_s,
+            ),
+        };
+        specs.push(spec);
+    }
+    Ok(specs)
+}
+
+/// The client name of the start-posture move (dynamixel).
+pub const HOME_CLIENT: &str = "joint_motor/home";
+
+fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointDriver>> {
+    match config.driver.as_str() {
+        "sim" => {
+            let params = match &config.sim_config {
+                Some(p) => SimParams::from_toml(
+                    &std::fs::read_to_string(p)
+                        .with_context(|| format!("reading {}", p.display()))?,
+                )
+                .with_context(|| format!("in {}", p.display()))?,
+                None => SimParams::default(),
+            };
+            let start: Option<Vec<f64>> = specs
+                .iter()
+                .map(|s| config.home.position(&s.name, s.lower, s.upper))
+                .collect();
+            Ok(match start {
+                Some(start) => Box::new(SimDriver::new_at(specs, params, &start)?),
+                None => Box::new(SimDriver::new(specs, params)?),
+            })
+        }
+        "dynamixel" => {
+            let path = config
+                .servo_config
+                .as_ref()
+                .context("--driver dynamixel needs --servo-config <file.toml>")?;
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            // Drive only the joints the servo map names.
+            let table: toml::Table =
+                toml::from_str(&text).with_context(|| format!("in {}", path.display()))?;
+            let mapped: Vec<String> = table
+                .get("joints")
+                .and_then(|j| j.as_table())
+                .map(|t| t.keys().cloned().collect())
+                .unwrap_or_default();
+            let specs: Vec<JointSpec> = specs
+                .into_iter()
+                .filter(|s| mapped.contains(&s.name))
+                .collect();
+            let mut cfg = crate::dynamixel::DynamixelConfig::from_toml(&text, &specs)
+                .with_context(|| format!("in {}", path.display()))?;
+            if let Some(port) = &config.port {
+                cfg.port.clone_from(port);
+            }
+            let serial = crate::dynamixel::SerialPort::open(&cfg.port, cfg.baud)
+                .with_context(|| format!("opening the servo line {}", cfg.port))?;
+            tracing::info!(
+                port = %cfg.port,
+                baud = cfg.baud,
+                joints = specs.len(),
+                "connecting to the servos"
+            );
+            Ok(Box::new(crate::dynamixel::DynamixelDriver::new(
+                specs,
+                cfg,
+                Box::new(serial),
+            )?))
+        }
+        other => anyhow::bail!("unknown driver `{other}` (known: sim, dynamixel)"),
+    }
+}
+
+/// Runs the component until shutdown.
+pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        config.rate_hz.is_finite() && config.rate_hz > 0.0 && config.rate_hz <= 1000.0,
+        "--rate-hz must be in (0, 1000], got {}",
+        config.rate_hz
+    );
+    let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
+    let model = RobotModel::from_urdf_file(&urdf)
+        .with_context(|| format!("loading the robot model {}", urdf.display()))?;
+    let specs = specs_from_model(&model, config.accel_time_s)?;
+    let driver = open(&config, specs)?;
+    let driver_name = driver.name();
+    let joints = driver.joints().len();
+    let mut motor = JointMotor::new(driver, config.lease_s)?;
+    let t0 = Instant::now();
+    let now_s = move || t0.elapsed().as_secs_f64();
+    if driver_name != "sim" && config.home != Home::None {
+        // Real servos: move to the start posture slowly, then leave them to the clients.
+        let targets: Vec<JointTarget> = motor
+            .driver()
+            .joints()
+            .iter()
+            .filter_map(|s| {
+                let position = config.home.position(&s.name, s.lower, s.upper)?;
+                Some(JointTarget {
+                    joint: s.name.clone(),
+                    command: JointCommand::Position {
+                        position,
+                        max_speed: config.home_speed.min(s.max_velocity),
+                    },
+                })
+            })
+            .collect();
+        let goal = JointGoal {
+            client: HOME_CLIENT.into(),
+            priority: 0,
+            targets,
+        };
+        motor
+            .submit(&goal, now_s())
+            .context("moving to the start posture")?;
+        motor.release(
+            &JointRelease {
+                client: HOME_CLIENT.into(),
+                joints: vec![],
+            },
+            now_s(),
+        )?;
+    }
+    tracing::info!(
+        driver = driver_name,
+        joints,
+        urdf = %urdf.display(),
+        home = ?config.home,
+        "joint_motor ready: {} at {} Hz, goals on {}",
+        topics::BODY_JOINT_STATES.name(),
+        config.rate_hz,
+        topics::BODY_JOINT_GOAL.name()
+    );
+    let motor = Arc::new(Mutex::new(motor));
+    let counters = bus.counters().clone();
+
+    let handler_motor = motor.clone();
+    let handler_counters = counters.clone();
+    let refusal_log = Arc::new(Mutex::new(RateLimiter::new(Duration::from_secs(1))));
+    let _service = bus
+        .serve(&topics::BODY_JOINT_GOAL, move |req: m::JointGoal| {
+            let motor = handler_motor.clone();
+            let counters = handler_counters.clone();
+            let refusal_log = refusal_log.clone();
+            async move {
+                let reply = handle_goal(&motor, &req, now_s);
+                if reply.accepted {
+                    counters.incr(if req.release { "releases" } else { "goals_accepted" });
+                    if !reply.preempted.is_empty() {
+                        tracing::info!(
+                            client = %req.client,
+                            priority = req.priority,
+                            "took {:?} from a lower-priority owner",
+                            reply.preempted
+                        );
+                    }
+                } else {
+                    counters.incr(bus::refusal_counter(reply.refusal));
+                    let allowed = refusal_log
+                        .lock()
+                        .ok()
+                        .and_then(|mut l| l.allow(Instant::now()));
+                    if let Some(suppressed) = allowed {
+                        tracing::info!(client = %req.client, suppressed, "refused a goal: {}", reply.detail);
+                    }
+                }
+                Ok(reply)
+            }
+        })
+        .await?;
+
+    let states = bus.publisher(&topics::BODY_JOINT_STATES).await?;
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.rate_hz));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut read_log = RateLimiter::new(Duration::from_secs(1));
+    loop {
+        tokio::select! {
+            biased;
+            _ = shutdown.wait() => break,
+            _ = tick.tick() => {
+                let read = match motor.lock() {
+                    Ok(mut m) => m.states(now_s()),
+                    Err(_) => anyhow::bail!("the joint motor lock is poisoned"),
+                };
+                match read {
+                    Ok(s) => {
+                        let mut msg = bus::states_to_msg(&s, driver_name);
+                        states.publish(&mut msg).await?;
+                    }
+                    Err(e) => {
+                        counters.incr("read_errors");
+                        if let Some(suppressed) = read_log.allow(Instant::now()) {
+                            tracing::warn!(suppressed, "could not read the joints: {e}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    tracing::info!("stopped");
+    Ok(())
+}
+
+/// One `body/joint_goal` request against the motor: the reply, accepted or refused. `now_s` is
+/// read once the motor is locked, so that the driver's clock never goes backwards between
+/// requests and the states loop.
+pub fn handle_goal(
+    motor: &Mutex<JointMotor>,
+    req: &m::JointGoal,
+    now_s: impl Fn() -> f64,
+) -> m::JointGoalReply {
+    let request = match bus::request_from_msg(req) {
+        Ok(r) => r,
+        Err(e) => return bus::refused(&e),
+    };
+    let Ok(mut motor) = motor.lock() else {
+        return bus::refused(&crate::JointError::Bus(
+            "the joint motor lock is poisoned".into(),
+        ));
+    };
+    let now_s = now_s();
+    match request {
+        Request::Goal(goal) => match motor.submit(&goal, now_s) {
+            Ok(preempted) => bus::accepted(&preempted),
+            Err(e) => bus::refused(&e),
+        },
+        Request::Release(release) => match motor.release(&release, now_s) {
+            Ok(freed) => m::JointGoalReply {
+                accepted: true,
+                detail: format!("released {freed:?}"),
+                ..Default::default()
+            },
+            Err(e) => bus::refused(&e),
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn loki() -> RobotModel {
+        RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn every_movable_urdf_joint_becomes_a_spec_with_its_limits() {
+        let model = loki();
+        let specs = specs_from_model(&model, 0.25).unwrap();
+        assert_eq!(specs.len(), model.movable_joint_names().len());
+        let elbow = specs.iter().find(|s| s.name == "left_elbow").unwrap();
+        assert_eq!(
+            (elbow.lower, elbow.upper, elbow.max_velocity),
+            (-2.4, 0.0, 1.8)
+        );
+        assert!((elbow.max_acceleration - 7.2).abs() < 1e-12);
+        assert!(specs_from_model(&model, 0.0).is_err());
+    }
+
+    fn config(args: &[&str]) -> Config {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            config: Config,
+        }
+        let mut all = vec!["joint_motor"];
+        all.extend_from_slice(args);
+        <Cli as clap::Parser>::parse_from(all).config
+    }
+
+    #[test]
+    fn the_dynamixel_driver_opens_the_port_flag_and_drives_only_the_mapped_joints() {
+        use crate::servo_sim::{Faults, ServoChain};
+        let (chain, path) = ServoChain::spawn_on_pty_path(&[1, 2], Faults::default(), 3).unwrap();
+        let dir = std::env::temp_dir().join(format!("joint_motor-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let map = dir.join("servos.toml");
+        std::fs::write(
+            &map,
+            "port = \"/dev/not-this-one\"\nbaud = 57600\n[joints.neck_yaw]\nid = 1\n[joints.neck_pitch]\nid = 2\n",
+        )
+        .unwrap();
+        let specs = specs_from_model(&loki(), 0.25).unwrap();
+        let c = config(&[
+            "--driver",
+            "dynamixel",
+            "--servo-config",
+            map.to_str().unwrap(),
+            "--port",
+            path.to_str().unwrap(),
+        ]);
+        let driver = open(&c, specs.clone()).unwrap();
+        assert_eq!(driver.name(), "dynamixel");
+        let names: Vec<&str> = driver.joints().iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["neck_pitch", "neck_yaw"]);
+        assert_eq!(chain.torque(1), Some(true), "servo 1 was set up");
+        // Without --servo-config: a clear error.
+        let c = config(&["--driver", "dynamixel"]);
+        let e = open(&c, specs).err().unwrap().to_string();
+        assert!(e.contains("--servo-config"), "{e}");
+    }
+
+    #[test]
+    fn goals_are_refused_typed_and_releases_free_joints() {
+        let specs = specs_from_model(&loki(), 0.25).unwrap();
+        let motor = Mutex::new(
+            JointMotor::new(
+                Box::new(SimDriver::new(specs, SimParams::default()).unwrap()),
+                1.0,
+            )
+            .unwrap(),
+        );
+        let goal = |client: &str, priority: u8, position: f64| m::JointGoal {
+            client: client.into(),
+            priority,
+            targets: vec![m::JointTarget {
+                joint: "left_elbow".into(),
+                mode: m::JointMode::Position,
+                position,
+                max_speed: 1.0,
+                velocity: 0.0,
+            }],
+            ..Default::default()
+        };
+        let r = handle_goal(&motor, &goal("a", 0, 0.3), || 0.0);
+        assert_eq!(r.refusal, m::JointRefusal::AboveUpperLimit);
+        assert_eq!(
+            (r.joint.as_str(), r.limit, r.requested),
+            ("left_elbow", 0.0, 0.3)
+        );
+        assert!(handle_goal(&motor, &goal("a", 0, -0.5), || 0.1).accepted);
+        let r = handle_goal(&motor, &goal("b", 0, -0.6), || 0.2);
+        assert_eq!((r.refusal, r.owner.as_str()), (m::JointRefusal::Owned, "a"));
+        let r = handle_goal(&motor, &goal("c", 1, -0.6), || 0.3);
+        assert!(r.accepted && r.preempted == ["left_elbow"], "{r:?}");
+        let mut release = goal("c", 0, 0.0);
+        release.release = true;
+        release.targets.clear();
+        assert!(handle_goal(&motor, &release, || 0.4).accepted);
+        assert!(handle_goal(&motor, &goal("b", 0, -0.6), || 0.5).accepted);
+    }
+}
