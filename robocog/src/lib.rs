@@ -2,11 +2,14 @@
 //!
 //! - `robocog launch <manifest>` runs a graph of components ([`supervisor`]);
 //! - `robocog check <manifest>` validates one ([`manifest`], [`check`]);
-//! - `robocog topic list|echo|hz|info|pub` and `robocog component list` look at a running graph.
+//! - `robocog topic list|echo|hz|info|pub` and `robocog component list` look at a running graph;
+//! - `robocog record` / `robocog replay` write a graph's topics to an MCAP file and publish them
+//!   back ([`mcap_io`]).
 //!
 //! One file per verb lives in [`command`].
 
 pub mod check;
 pub mod command;
 pub mod manifest;
+pub mod mcap_io;
 pub mod supervisor;

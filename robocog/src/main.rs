@@ -20,6 +20,10 @@ enum Verb {
     Topic(command::topic::Args),
     /// List the live components of a running graph.
     Component(command::component::Args),
+    /// Record the topics of a running graph into an MCAP file.
+    Record(command::record::Args),
+    /// Publish an MCAP recording back onto a namespace, at the recorded pace, scaled, or stepwise.
+    Replay(command::replay::Args),
 }
 
 fn main() -> ExitCode {
@@ -45,6 +49,8 @@ fn main() -> ExitCode {
             Verb::Launch(a) => command::launch::execute(a).await,
             Verb::Topic(a) => command::topic::execute(a).await,
             Verb::Component(a) => command::component::execute(a).await,
+            Verb::Record(a) => command::record::execute(a).await,
+            Verb::Replay(a) => command::replay::execute(a).await,
             Verb::Check(_) => Ok(0),
         }
     });

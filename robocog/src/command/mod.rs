@@ -12,6 +12,8 @@ macro_rules! out {
 pub mod check;
 pub mod component;
 pub mod launch;
+pub mod record;
+pub mod replay;
 pub mod topic;
 
 /// The bus of a command-line tool: joins the graph without announcing itself as a component.

@@ -119,7 +119,7 @@ fn topics(tokens: &[Token]) -> BTreeMap<String, TopicInfo> {
     map
 }
 
-fn check_topic(name: &str) -> anyhow::Result<()> {
+pub(crate) fn check_topic(name: &str) -> anyhow::Result<()> {
     if interfaces::topic::is_valid_name(name) {
         Ok(())
     } else {
@@ -128,7 +128,7 @@ fn check_topic(name: &str) -> anyhow::Result<()> {
 }
 
 /// The type name a sample carries in its encoding (`application/cdr;robocog.Text`).
-fn sample_type(sample: &zenoh::sample::Sample) -> Option<String> {
+pub(crate) fn sample_type(sample: &zenoh::sample::Sample) -> Option<String> {
     let enc = sample.encoding().to_string();
     enc.split_once(';').map(|(_, schema)| schema.to_string())
 }
