@@ -86,7 +86,8 @@ async fn play_with(
     let manifest =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/touch_the_ball.toml");
     let set = format!("scenario={scenario}");
-    let mut extra = vec!["--set", set.as_str()];
+    // The panel on a free port: tests run side by side.
+    let mut extra = vec!["--set", set.as_str(), "--set", "panel_http=127.0.0.1:0"];
     for s in extra_sets {
         extra.push("--set");
         extra.push(s);
@@ -180,20 +181,26 @@ fn check_ok(game: &Game) {
 async fn touch_a_still_ball() {
     let game = play("still", &[], Duration::from_secs(180)).await;
     check_ok(&game);
-    game.entered_in_order(&["greet", "search", "track", "reach", "home", "finished"])
+    game.entered_in_order(&[
+        "playing", "searching", "tracking", "reaching", "touching", "homing", "finished",
+    ])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
     assert!(game.said_any("hello"), "{:?}", game.said);
     assert!(game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
     let (hand, ball) = *game.touches.first().expect("a touch measured");
     assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
-    assert!(ball <= 0.02, "DR ball {:.1} cm from the truth", ball * 100.0);
+    assert!(
+        ball <= 0.02,
+        "DR ball {:.1} cm from the truth",
+        ball * 100.0
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn touch_a_moving_ball() {
     let game = play("moving", &[], Duration::from_secs(180)).await;
     check_ok(&game);
-    game.entered_in_order(&["track", "reach", "home", "finished"])
+    game.entered_in_order(&["tracking", "reaching", "following", "homing", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
     assert!(game.said_any("follow"), "{:?}", game.said);
     // The person's own check (hand within 3 cm of the moved ball) passed; the arm reached again
@@ -212,7 +219,7 @@ async fn touch_a_moving_ball() {
 async fn the_ball_leaves_the_view_and_comes_back() {
     let game = play("out_of_view", &[], Duration::from_secs(180)).await;
     check_ok(&game);
-    game.entered_in_order(&["track", "search", "track", "reach", "finished"])
+    game.entered_in_order(&["tracking", "searching", "tracking", "reaching", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
     assert!(game.said_any("lost the ball"), "{:?}", game.said);
 }
@@ -221,7 +228,11 @@ async fn the_ball_leaves_the_view_and_comes_back() {
 async fn an_unreachable_ball_is_explained() {
     let game = play("unreachable", &[], Duration::from_secs(150)).await;
     check_ok(&game);
-    assert!(game.arm.contains(&ReachState::Unreachable), "{:?}", game.arm);
+    assert!(
+        game.arm.contains(&ReachState::Unreachable),
+        "{:?}",
+        game.arm
+    );
     assert!(!game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
     assert!(game.said_any("reach"), "{:?}", game.said);
 }
@@ -245,6 +256,6 @@ async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
         "no restart in the output"
     );
     assert!(game.said_any("lost the ball"), "{:?}", game.said);
-    game.entered_in_order(&["track", "search", "track", "reach", "finished"])
+    game.entered_in_order(&["tracking", "searching", "tracking", "reaching", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
 }

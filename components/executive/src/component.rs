@@ -35,6 +35,7 @@ use interfaces::msg::body::{JointGoal, JointRefusal};
 use interfaces::msg::dr::{GetNodeRequest, ProposeReply, ProposeRequest};
 use interfaces::msg::executive::{Configuration, ConfigurationRequest, GameLog, StateTransition};
 use interfaces::msg::speech::{SayRequest, SpeakingState};
+use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrackState};
 use interfaces::node::Interface;
 use interfaces::{Bus, Shutdown, topics};
 use tokio::sync::mpsc;
@@ -339,6 +340,61 @@ async fn send_home(bus: Bus, goal: JointGoal, results: mpsc::Sender<HomeResult>)
 }
 
 /// The touch game's publishers.
+/// How long without `vision/ball` before a tracking game calls the ball lost.
+const TRACKER_SILENCE: Duration = Duration::from_millis(1500);
+
+/// Watches the tracker's heartbeat (`vision/ball` comes once per frame, found or not).
+#[derive(Debug, Default)]
+struct TrackerWatch {
+    last: Option<tokio::time::Instant>,
+    reported: bool,
+    last_resend: Option<tokio::time::Instant>,
+}
+
+impl TrackerWatch {
+    fn heard(&mut self, now: tokio::time::Instant) {
+        self.last = Some(now);
+        self.reported = false;
+    }
+    /// True once per silence longer than [`TRACKER_SILENCE`] (after the tracker was heard).
+    fn silent(&mut self, now: tokio::time::Instant) -> bool {
+        match self.last {
+            Some(t) if !self.reported && now.duration_since(t) > TRACKER_SILENCE => {
+                self.reported = true;
+                true
+            }
+            _ => false,
+        }
+    }
+    /// At most once a second.
+    fn may_resend(&mut self, now: tokio::time::Instant) -> bool {
+        if self
+            .last_resend
+            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
+            return false;
+        }
+        self.last_resend = Some(now);
+        true
+    }
+}
+
+/// Whether the game's eyes need the tracker to have a target.
+fn wants_tracker(game: &TouchGame) -> bool {
+    let m = game.machine();
+    m.is_active(touch::state::SEARCHING) || m.is_active(touch::state::TRACKING)
+}
+
+fn ball_target(s: &crate::settings::TouchSettings) -> BallTarget {
+    BallTarget {
+        active: true,
+        hue_deg: s.ball_hue_deg,
+        saturation: s.ball_saturation,
+        diameter_m: s.ball_diameter_m,
+        ..BallTarget::default()
+    }
+}
+
 struct TouchOut {
     bus: Bus,
     say: interfaces::Publisher<SayRequest>,
@@ -473,6 +529,7 @@ async fn run_touch(
     let o = game.start(bus_now(&bus));
     out.emit(o).await?;
     *lock(&snapshot) = snapshot_of(&game, &mermaid);
+    let mut watch = TrackerWatch::default();
     loop {
         // Wake for the next timer; poll at least every 200 ms in case the clock is virtual.
         let now = bus_now(&bus);
@@ -492,6 +549,17 @@ async fn run_touch(
                 // Only the newest track matters.
                 while let Some(newer) = tracks.try_recv() {
                     t = newer;
+                }
+                watch.heard(tokio::time::Instant::now());
+                if t.state == BallTrackState::Waiting && wants_tracker(&game) && watch.may_resend(tokio::time::Instant::now()) {
+                    // A tracker without a target while the game needs one: it was restarted.
+                    out.log_line(LogLine {
+                        kind: "anomaly",
+                        text: "the ball tracker has no target (was it restarted?): sending it again".into(),
+                        distance_m: -1.0,
+                    }).await?;
+                    let mut target = ball_target(&settings.touch);
+                    out.target.publish(&mut target).await?;
                 }
                 game.ball_track(&t, bus_now(&bus))
             }
@@ -523,6 +591,27 @@ async fn run_touch(
             _ = tokio::time::sleep(sleep_for) => game.advance(bus_now(&bus)),
         };
         out.emit(outcome).await?;
+        // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
+        // stopped): the ball is lost, said so, and searched for again once it is back.
+        if game.machine().is_active(touch::state::TRACKING)
+            && watch.silent(tokio::time::Instant::now())
+        {
+            out.log_line(LogLine {
+                kind: "anomaly",
+                text: format!(
+                    "no ball track for {:.1} s: the ball tracker is silent",
+                    TRACKER_SILENCE.as_secs_f64()
+                ),
+                distance_m: -1.0,
+            })
+            .await?;
+            let lost = BallEvent {
+                kind: BallEventKind::Lost,
+                ..BallEvent::default()
+            };
+            let o = game.ball_event(&lost, bus_now(&bus));
+            out.emit(o).await?;
+        }
         *lock(&snapshot) = snapshot_of(&game, &mermaid);
         if out.finished && config.exit_when_finished {
             // Let the last messages and the rest postures go out.

@@ -277,9 +277,12 @@ mod tests {
         assert_eq!(s.touch.arm_rest.len(), 7);
         assert_eq!(s.touch.scan_points.len(), 11);
         assert!(
-            s.touch.scan_points.iter().all(|p| (1.1..=1.4).contains(&p[2])
-                && (0.5..=0.8).contains(&p[0])
-                && (-0.4..=0.4).contains(&p[1]))
+            s.touch
+                .scan_points
+                .iter()
+                .all(|p| (1.1..=1.4).contains(&p[2])
+                    && (0.5..=0.8).contains(&p[0])
+                    && (-0.4..=0.4).contains(&p[1]))
         );
     }
 

@@ -173,7 +173,11 @@ fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
     assert_eq!(pts, s.scan_points[2..5]);
     // Every scan point is on the table in front of the robot.
     for p in &s.scan_points {
-        assert!((0.5..=0.8).contains(&p[0]) && (-0.4..=0.4).contains(&p[1]) && (1.1..=1.4).contains(&p[2]));
+        assert!(
+            (0.5..=0.8).contains(&p[0])
+                && (-0.4..=0.4).contains(&p[1])
+                && (1.1..=1.4).contains(&p[2])
+        );
     }
 
     let o = g.ball_event(&ball(BallEventKind::Detected), t(8.2));
