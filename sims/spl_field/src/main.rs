@@ -2,7 +2,7 @@ use clap::Parser;
 use interfaces::node::{self, Interface, NodeArgs};
 use interfaces::topics;
 use spl_field::process::{NetConfig, run};
-use spl_field::types::SimConfig;
+use spl_field::types::{RobotId, SimConfig};
 use std::net::IpAddr;
 use std::process::ExitCode;
 
@@ -43,6 +43,9 @@ struct Args {
     /// Falls per minute per robot (0: never).
     #[arg(long)]
     falls_per_min: Option<f64>,
+    /// Whether the two opponents stand still in PLAYING (obstacles only; scripted scenarios).
+    #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
+    passive_opponents: bool,
 }
 
 fn main() -> ExitCode {
@@ -61,6 +64,9 @@ fn main() -> ExitCode {
     }
     if let Some(f) = args.falls_per_min {
         sim.falls_per_min = f.max(0.0);
+    }
+    if args.passive_opponents {
+        sim.passive_robots = vec![RobotId::KEEPER, RobotId::DEFENDER];
     }
     let net = NetConfig {
         operator: args.operator,

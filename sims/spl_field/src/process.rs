@@ -8,6 +8,8 @@
 //! - Debug packets go every 100 ms per robot to `operator:debug_port`, GameController packets
 //!   at 2 Hz to `operator:gamecontroller_port`.
 //! - Ground truth is published on `sim/field_truth` at 10 Hz, for tests and viewers only.
+//! - Scripted falls, for tests and demos: `SIGUSR1` knocks the controlled robot over, `SIGUSR2`
+//!   the autonomous teammate (each gets up after the configured get-up time).
 
 use crate::sim::SplField;
 use crate::types::{Datagram, RobotId, SimConfig, SimEvent};
@@ -75,9 +77,20 @@ pub async fn run(
     let (mut last_cmd, mut commands, mut passes) = (Vec::new(), 0u64, 0u32);
     let mut events_seen = 0usize;
     let mut since_truth = Duration::ZERO;
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut knock_controlled = signal(SignalKind::user_defined1())?;
+    let mut knock_teammate = signal(SignalKind::user_defined2())?;
     loop {
         tokio::select! {
             _ = shutdown.wait() => return Ok(()),
+            _ = knock_controlled.recv() => {
+                tracing::info!("SIGUSR1: knocking the controlled robot over");
+                field.knock_over(RobotId::CONTROLLED);
+            }
+            _ = knock_teammate.recv() => {
+                tracing::info!("SIGUSR2: knocking the autonomous teammate over");
+                field.knock_over(RobotId::AUTONOMOUS);
+            }
             r = controlled.recv_from(&mut buf) => {
                 let (n, from) = r?;
                 match field.receive_command(&buf[..n]) {

@@ -31,7 +31,9 @@ use interfaces::msg::nao::{
 use interfaces::msg::speech::Priority;
 
 use super::rules::{self, Ask, Memory, RulesConfig, Situation, Verdict};
-use crate::engine::{ANY_EVENT, Builder, Context, Definition, DefinitionError, Event, Machine, Step};
+use crate::engine::{
+    ANY_EVENT, Builder, Context, Definition, DefinitionError, Event, Machine, Step,
+};
 
 /// The machine's name (the `machine` field of the Executive's messages).
 pub const MACHINE: &str = "coach";
@@ -418,7 +420,7 @@ impl CoachGame {
     }
 
     fn finish_step(&mut self, step: Step<Act>, mark: usize) -> Outcome {
-        if !step.ignored && !(step.exited.is_empty() && step.entered.is_empty()) {
+        if !step.ignored && (!step.exited.is_empty() || !step.entered.is_empty()) {
             let mut text = format!("{}:", step.event);
             if !step.exited.is_empty() {
                 text.push_str(&format!(" left {}", step.exited.join(", ")));
@@ -429,7 +431,10 @@ impl CoachGame {
             text.push_str(&format!(" -> now {}", step.active.join(" + ")));
             self.ctx.outputs.insert(
                 mark.min(self.ctx.outputs.len()),
-                Output::Log(LogLine { kind: "state", text }),
+                Output::Log(LogLine {
+                    kind: "state",
+                    text,
+                }),
             );
         }
         Outcome {
@@ -471,7 +476,7 @@ impl CoachGame {
 
     /// Sends a situation event when the situation now routes elsewhere than the active mode.
     fn reroute(&mut self, cause: &str, now: Duration) -> Outcome {
-        let want = route(&self.ctx.situation, &*self.ctx.settings);
+        let want = route(&self.ctx.situation, &self.ctx.settings);
         if self.machine.is_active(want) {
             return self.advance(now);
         }
@@ -503,7 +508,7 @@ impl CoachGame {
                     cmd.command,
                     self.ctx.memory.clicked,
                     self.ctx.situation.world.as_ref(),
-                    &*self.ctx.settings,
+                    &self.ctx.settings,
                 )
             })
             .flatten();
@@ -514,10 +519,17 @@ impl CoachGame {
                 }
                 out.extend(self.ask(a, now));
             }
+            None if cmd.command.is_answer() => {
+                // The dialog's yes/no: its business, logged as heard above.
+                out.outputs.append(&mut self.ctx.outputs);
+            }
             None => {
                 self.ctx.log(
                     "anomaly",
-                    format!("{:?} of {:?} is no robot command: ignored", cmd.command, cmd.game),
+                    format!(
+                        "{:?} of {:?} is no robot command: ignored",
+                        cmd.command, cmd.game
+                    ),
                 );
                 out.outputs.append(&mut self.ctx.outputs);
             }

@@ -21,7 +21,7 @@ pub mod rules;
 
 pub use machine::{CoachGame, CoachSettings, MACHINE, Outcome, Output};
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use interfaces::msg::executive::{GameLog, StateTransition};
 use interfaces::msg::speech::SayRequest;
@@ -42,16 +42,26 @@ pub fn interface(i: Interface) -> Interface {
         .publishes(&topics::COACH_STATUS)
 }
 
-/// Runs the coach machine on the bus until shutdown. Time is the process's monotonic clock
-/// since start.
-pub async fn run(bus: Bus, settings: CoachSettings, mut shutdown: Shutdown) -> anyhow::Result<()> {
+/// Runs the coach machine on the bus until shutdown. Time is the bus clock (system or virtual).
+pub async fn run(bus: Bus, settings: CoachSettings, shutdown: Shutdown) -> anyhow::Result<()> {
+    run_observed(bus, settings, shutdown, |_| {}).await
+}
+
+/// [`run`], calling `observe` with the game after every input it handled (for the
+/// `executive/configuration` service: `game.machine()` has the active states and the step count).
+pub async fn run_observed(
+    bus: Bus,
+    settings: CoachSettings,
+    mut shutdown: Shutdown,
+    mut observe: impl FnMut(&CoachGame) + Send,
+) -> anyhow::Result<()> {
     let mut game = CoachGame::new(settings)?;
     let commands = bus.subscriber(&topics::GAME_COMMAND).await?;
     let requests = bus.subscriber(&topics::COACH_REQUEST).await?;
     let worlds = bus.subscriber(&topics::NAO_WORLD_MODEL).await?;
     let states = bus.subscriber(&topics::NAO_GAME_STATE).await?;
     let links = bus.subscriber(&topics::NAO_LINK).await?;
-    let out = Publishers {
+    let mut out = Publishers {
         nao: bus.publisher(&topics::NAO_COMMAND).await?,
         say: bus.publisher(&topics::SPEECH_SAY).await?,
         transitions: bus.publisher(&topics::EXECUTIVE_TRANSITIONS).await?,
@@ -60,15 +70,16 @@ pub async fn run(bus: Bus, settings: CoachSettings, mut shutdown: Shutdown) -> a
         counters: bus.counters().clone(),
         say_id: 0,
     };
-    let mut out = out;
-    let started = Instant::now();
-    let now = move || started.elapsed();
+    // The bus clock (system or virtual), so timers follow a replayed or virtual clock.
+    let clock = bus.clock().clone();
+    let now = move || Duration::from_nanos(u64::try_from(clock.now_ns()).unwrap_or(0));
     tracing::info!(
         "coach: machine `{MACHINE}` with states {:?}",
         game.machine().definition().state_paths()
     );
     let o = game.start(now());
     out.emit(o).await?;
+    observe(&game);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
     status_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut last_status = None;
@@ -90,6 +101,9 @@ pub async fn run(bus: Bus, settings: CoachSettings, mut shutdown: Shutdown) -> a
         };
         let stepped = outcome.steps.iter().any(|s| !s.ignored) || !outcome.outputs.is_empty();
         out.emit(outcome).await?;
+        if stepped {
+            observe(&game);
+        }
         let mut st = game.status(now());
         // Publish on change (ages aside) and on the tick.
         let key = {

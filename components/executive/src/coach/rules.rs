@@ -406,13 +406,28 @@ fn inside_field(p: FieldPoint) -> bool {
 pub fn towards_own_goal(from: FieldPoint, to: FieldPoint, margin_mm: f32) -> bool {
     let dx = to.x_mm - from.x_mm;
     let dy = to.y_mm - from.y_mm;
-    if !(dx < 0.0) || !dy.is_finite() {
+    // Only backwards (NaN included: not a direction).
+    if dx.is_nan() || dx >= 0.0 || !dy.is_finite() {
         return false;
     }
     // Where the line reaches x = -4500.
     let t = (-FIELD_HALF_LENGTH_MM - from.x_mm) / dx;
     let y = from.y_mm + t * dy;
     y.abs() <= GOAL_HALF_WIDTH_MM + margin_mm
+}
+
+/// Whether a kick aimed at `aim` from `from` (the ball, else the robot) goes towards our goal.
+/// Without a known position, an aim within 1 m of our goal mouth (or not finite) counts.
+fn aimed_at_own_goal(from: Option<FieldPoint>, aim: FieldPoint, config: &RulesConfig) -> bool {
+    if !aim.x_mm.is_finite() || !aim.y_mm.is_finite() {
+        return true;
+    }
+    let near_goal = aim.x_mm < -FIELD_HALF_LENGTH_MM + 1000.0
+        && aim.y_mm.abs() <= GOAL_HALF_WIDTH_MM + config.own_goal_margin_mm;
+    match from {
+        Some(from) => near_goal || towards_own_goal(from, aim, config.own_goal_margin_mm),
+        None => near_goal,
+    }
 }
 
 fn metres(p: FieldPoint) -> String {
@@ -443,10 +458,7 @@ pub fn decide(ask: &Ask, situation: &Situation, config: &RulesConfig) -> Verdict
                 };
                 return refuse(
                     Refusal::OutsideField,
-                    format!(
-                        "I cannot {}{at}: it is outside the field.",
-                        verb(ask.body)
-                    ),
+                    format!("I cannot {}{at}: it is outside the field.", verb(ask.body)),
                     false,
                 );
             }
@@ -525,8 +537,7 @@ pub fn decide(ask: &Ask, situation: &Situation, config: &RulesConfig) -> Verdict
     let asked = ask.body;
     if ask.body == NaoBody::Kick && config.challenge_rule {
         if let Some(aim) = ask.aim
-            && let Some(ball) = situation.ball_or_robot(config)
-            && towards_own_goal(ball, aim, config.own_goal_margin_mm)
+            && aimed_at_own_goal(situation.ball_or_robot(config), aim, config)
         {
             return refuse(
                 Refusal::OwnGoal,
@@ -561,9 +572,7 @@ pub fn decide(ask: &Ask, situation: &Situation, config: &RulesConfig) -> Verdict
                 {
                     return refuse(
                         Refusal::OwnGoal,
-                        format!(
-                            "{prefix}I will not pass: the ball would go towards our own goal."
-                        ),
+                        format!("{prefix}I will not pass: the ball would go towards our own goal."),
                         false,
                     );
                 }
@@ -572,8 +581,7 @@ pub fn decide(ask: &Ask, situation: &Situation, config: &RulesConfig) -> Verdict
     }
     if matches!(ask.body, NaoBody::Kick | NaoBody::Spazza)
         && let Some(aim) = ask.aim
-        && let Some(ball) = situation.ball_or_robot(config)
-        && towards_own_goal(ball, aim, config.own_goal_margin_mm)
+        && aimed_at_own_goal(situation.ball_or_robot(config), aim, config)
     {
         return refuse(
             Refusal::OwnGoal,
@@ -713,9 +721,7 @@ impl Memory {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use interfaces::msg::nao::{
-        FieldPose, PlayerPenalty, TeamRobot, TeamStatus, TrackedObstacle,
-    };
+    use interfaces::msg::nao::{FieldPose, PlayerPenalty, TeamRobot, TeamStatus, TrackedObstacle};
 
     fn cfg() -> RulesConfig {
         RulesConfig::default()
@@ -849,9 +855,11 @@ mod tests {
                 ..Ask::body(NaoBody::Keep, "voice")
             };
             assert_eq!(decide(&head, &s, &cfg()).say(), "Looking left.");
-            assert!(decide(&Ask::body(NaoBody::Stop, "voice"), &s, &cfg())
-                .command()
-                .is_some());
+            assert!(
+                decide(&Ask::body(NaoBody::Stop, "voice"), &s, &cfg())
+                    .command()
+                    .is_some()
+            );
         }
         // FINISHED: refused and not kept; no GameController yet: refused, kept.
         let s = Situation {
@@ -899,8 +907,9 @@ mod tests {
             v,
             Verdict::Refuse {
                 reason: Refusal::Penalised,
-                say: "I cannot go to the position now: I am penalised. I will do it when I am back."
-                    .into(),
+                say:
+                    "I cannot go to the position now: I am penalised. I will do it when I am back."
+                        .into(),
                 keep: true
             }
         );
@@ -991,7 +1000,10 @@ mod tests {
         s.world.as_mut().unwrap().robots.pop();
         let v = decide(&Ask::body(NaoBody::Kick, "voice"), &s, &cfg());
         assert_eq!(v.command().unwrap().body, NaoBody::GoToBallAndDribble);
-        assert!(v.say().starts_with("I may not shoot at the goal myself. I see no teammate"));
+        assert!(
+            v.say()
+                .starts_with("I may not shoot at the goal myself. I see no teammate")
+        );
         // Outside the challenge, a kick is a kick.
         let c = RulesConfig {
             challenge_rule: false,
@@ -1035,6 +1047,26 @@ mod tests {
                 assert!(v.say().contains("towards our own goal"), "{v:?}");
             }
         }
+        // Without any world model, an aim at our goal mouth is still refused.
+        let blind = Situation {
+            world: None,
+            ..playing()
+        };
+        let c = RulesConfig {
+            challenge_rule: false,
+            ..cfg()
+        };
+        let ask = Ask {
+            aim: Some(pt(-4400.0, 100.0)),
+            ..Ask::body(NaoBody::Kick, "panel")
+        };
+        assert!(matches!(
+            decide(&ask, &blind, &c),
+            Verdict::Refuse {
+                reason: Refusal::OwnGoal,
+                ..
+            }
+        ));
         // A pass to a teammate standing between the ball and our goal.
         let mut s = playing();
         let w = s.world.as_mut().unwrap();
@@ -1097,14 +1129,26 @@ mod tests {
         assert_eq!(a.target, Some(pt(100.0, 200.0)));
         let a = Ask::from_voice(Command::Turn, None, w, &c).unwrap();
         let t = a.target.unwrap();
-        assert!((t.x_mm + 2500.0).abs() < 1e-3 && t.y_mm.abs() < 1e-3, "{t:?}");
-        assert_eq!(Ask::from_voice(Command::Turn, None, None, &c).unwrap().target, None);
+        assert!(
+            (t.x_mm + 2500.0).abs() < 1e-3 && t.y_mm.abs() < 1e-3,
+            "{t:?}"
+        );
         assert_eq!(
-            Ask::from_voice(Command::ClearBall, None, w, &c).unwrap().body,
+            Ask::from_voice(Command::Turn, None, None, &c)
+                .unwrap()
+                .target,
+            None
+        );
+        assert_eq!(
+            Ask::from_voice(Command::ClearBall, None, w, &c)
+                .unwrap()
+                .body,
             NaoBody::Spazza
         );
         assert_eq!(
-            Ask::from_voice(Command::LookRight, None, w, &c).unwrap().head,
+            Ask::from_voice(Command::LookRight, None, w, &c)
+                .unwrap()
+                .head,
             NaoHead::LookRight
         );
         for not_robot in [Command::Yes, Command::No, Command::None, Command::TouchBall] {
