@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Speech recognition: robocog speech_recognition (end-pointer + PocketSphinx JSGF + confidence) vs
+# Speech recognition: robocog speech_recognition (end-pointer + PocketSphinx JSGF + garbage-model confidence) vs
 # the pocketsphinx_continuous program with the same grammar on the same audio files.
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
@@ -9,7 +9,7 @@ work="$CARGO_TARGET_DIR/bench/speech"
 rm -rf "$work" && mkdir -p "$work/wav"
 step "building the speech benchmark (release)"
 cargo build --release -p speech_recognition --example bench_speech
-step "robocog speech_recognition: 4 voices x 3 speeds x 4 SNRs x touch-game commands, plus out-of-grammar"
+step "robocog speech_recognition: 6 voices x 3 speeds x 4 SNRs x touch-game commands, plus 72 out-of-grammar utterances"
 "$BIN/examples/bench_speech" --write-wav "$work/wav" | tee "$work/ours.txt"
 step "pocketsphinx_continuous on the same files, same grammar"
 gram="components/speech_recognition/grammars/touch.gram"

@@ -2,14 +2,17 @@
 //!
 //! Audio is a continuous 16 000 Hz mono signed 16-bit stream. The end-pointer ([`vad`]) cuts
 //! utterances out of it; each is decoded by PocketSphinx (the Debian `pocketsphinx-en-us` model)
-//! constrained by the game's JSGF grammar ([`grammar`], files in `grammars/`), and by a phone loop
-//! that serves as garbage model for the confidence ([`confidence`]). The transcription is mapped
-//! to a command of the catalog (`interfaces::msg::command`) or marked out of grammar.
+//! twice: constrained by the game's JSGF grammar ([`grammar`], files in `grammars/`), and by a
+//! loop of filler words that stands for anything else (the garbage model, [`garbage`]). The
+//! posterior of the command against the garbage path is the confidence ([`confidence`]). The
+//! transcription is mapped to a command of the catalog (`interfaces::msg::command`), or marked
+//! out of grammar when the confidence is under the rejection threshold.
 //!
 //! The component (`src/main.rs`) reads `audio/in` (or `--wav FILE`) and publishes
 //! `speech/utterance`.
 
 pub mod confidence;
+pub mod garbage;
 pub mod grammar;
 pub mod recognizer;
 pub mod vad;

@@ -36,12 +36,17 @@ struct Args {
     /// End-pointer: silence that ends an utterance (s).
     #[arg(long, default_value_t = VadConfig::default().hangover_s)]
     hangover_s: f64,
-    /// Confidence: per-frame score deficit still counted as a perfect match (nats).
-    #[arg(long, default_value_t = ConfidenceConfig::default().margin)]
-    confidence_margin: f64,
-    /// Confidence: slope beyond the margin.
-    #[arg(long, default_value_t = ConfidenceConfig::default().scale)]
+    /// Confidence: acoustic scale of the N-best softmax (smaller spreads the confidence over
+    /// competing sentences; see the library's `confidence` module).
+    #[arg(long, default_value_t = ConfidenceConfig::default().acoustic_scale)]
     confidence_scale: f64,
+    /// Confidence: garbage penalty in nats per 10 ms frame (larger favours the commands).
+    #[arg(long, default_value_t = ConfidenceConfig::default().garbage_penalty)]
+    garbage_penalty: f64,
+    /// Filler words of the garbage model that catches out-of-grammar speech, one per line
+    /// (default: the shipped `grammars/filler.words`).
+    #[arg(long)]
+    fillers: Option<PathBuf>,
 }
 
 fn to_msg(r: &Recognized, latency_s: f64) -> Utterance {
@@ -83,9 +88,15 @@ fn main() -> ExitCode {
                 ..VadConfig::default()
             },
             confidence: ConfidenceConfig {
-                margin: args.confidence_margin,
-                scale: args.confidence_scale,
+                acoustic_scale: args.confidence_scale,
+                garbage_penalty: args.garbage_penalty,
+                ..ConfidenceConfig::default()
             },
+            fillers: Some(
+                args.fillers
+                    .clone()
+                    .unwrap_or_else(speech_recognition::garbage::filler_file),
+            ),
             ..RecognizerConfig::default()
         };
         Ok(Recognizer::new(game, &grammar, cfg)?)

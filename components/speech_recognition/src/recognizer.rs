@@ -1,16 +1,24 @@
 //! The recognizer: end-pointer, decoder and command mapping over a continuous 16 kHz mono stream.
+//!
+//! Two PocketSphinx decoders on the same acoustic model: the command search (the game's JSGF
+//! grammar) and the garbage search (a loop of filler words, [`crate::garbage`]). Both decode every
+//! utterance, so their cepstral-mean state stays the same; the command comes from the first and
+//! its confidence from the comparison of the two path scores ([`crate::confidence`]).
 
-use crate::confidence::{ConfidenceConfig, confidence};
+use crate::confidence::{ConfidenceConfig, estimate_snr_db, verdict};
+use crate::garbage::{Dictionary, GarbageError, garbage_jsgf, load_fillers, without_grammar_words};
 use crate::grammar::{Grammar, GrammarError};
-use crate::vad::{FRAME, RATE_HZ, Segment, Vad, VadConfig};
+use crate::vad::{RATE_HZ, Segment, Vad, VadConfig};
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::{Decoder, DecoderConfig, DecoderError};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RecognizerError {
     #[error(transparent)]
     Grammar(#[from] GrammarError),
+    #[error(transparent)]
+    Garbage(#[from] GarbageError),
     #[error(transparent)]
     Decoder(#[from] DecoderError),
 }
@@ -19,7 +27,8 @@ pub enum RecognizerError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recognized {
     pub game: Game,
-    /// Words, lowercase ("" when the decoder found nothing).
+    /// Words, lowercase, of the best path ("" when the decoder found nothing). For an
+    /// out-of-grammar utterance these are filler words (what it sounded like).
     pub text: String,
     /// In [0, 1], see [`crate::confidence`].
     pub confidence: f64,
@@ -30,27 +39,20 @@ pub struct Recognized {
     pub end_s: f64,
     /// Decoder time on this utterance (s, wall clock).
     pub decode_s: f64,
-    /// The raw scores behind the confidence (natural logs).
-    pub posterior_ln: f64,
-    pub garbage_per_frame_ln: f64,
+    /// Per-frame log-likelihood ratio of the command path against the garbage path (nats per
+    /// 10 ms frame), see [`crate::confidence`].
+    pub llr_per_frame: f64,
+    /// The command-against-garbage posterior, before the SNR factor ([`crate::confidence`]).
+    pub p_in_grammar: f64,
+    /// The utterance's estimated signal-to-noise ratio (dB).
+    pub snr_db: f64,
+    /// What the garbage search heard (filler words).
+    pub garbage_text: String,
     /// Cut at the maximum utterance length.
     pub forced: bool,
-    /// The grammar decoder's distinct N-best sentences and path scores, best first.
+    /// The command search's distinct N-best sentences and path scores (nats), best first (empty
+    /// unless [`RecognizerConfig::nbest`] is set; a debugging aid).
     pub nbest: Vec<(String, f64)>,
-}
-
-/// The garbage model's decoder: the same acoustic model with a phone loop, beams narrowed
-/// (`garbage_beam`, default 1e-8 instead of 1e-48, so it runs at a fraction of real time) and a
-/// low phone-LM weight (`garbage_lw`) so it follows the acoustics rather than phone statistics.
-pub fn phone_loop_config(base: &DecoderConfig, cfg: &RecognizerConfig) -> DecoderConfig {
-    let mut c = base.clone();
-    c.log_file = base.log_file.with_extension("phones.log");
-    let beam = format!("{:e}", cfg.garbage_beam);
-    let lw = format!("{}", cfg.garbage_lw);
-    for (k, v) in [("-beam", &beam), ("-pbeam", &beam), ("-lw", &lw)] {
-        c.extra_args.push((k.to_string(), v.to_string()));
-    }
-    c
 }
 
 /// Recognizer settings.
@@ -58,10 +60,14 @@ pub fn phone_loop_config(base: &DecoderConfig, cfg: &RecognizerConfig) -> Decode
 pub struct RecognizerConfig {
     pub vad: VadConfig,
     pub confidence: ConfidenceConfig,
-    /// Beam of the phone-loop (garbage) decoder, a probability ratio (smaller = wider, slower).
-    pub garbage_beam: f64,
-    /// Language weight of the phone loop.
-    pub garbage_lw: f64,
+    /// Filler words of the garbage model (default: the shipped `grammars/filler.words`); `None`
+    /// runs no garbage search, so every decoded sentence has confidence 1.
+    pub fillers: Option<PathBuf>,
+    /// Grammar probability of each filler word of a garbage path (a word insertion penalty of
+    /// the garbage search).
+    pub filler_weight: f64,
+    /// Distinct N-best sentences of the command search to read (0: none; costs decode time).
+    pub nbest: usize,
 }
 
 impl Default for RecognizerConfig {
@@ -69,8 +75,9 @@ impl Default for RecognizerConfig {
         Self {
             vad: VadConfig::default(),
             confidence: ConfidenceConfig::default(),
-            garbage_beam: 1e-8,
-            garbage_lw: 2.0,
+            fillers: Some(crate::garbage::filler_file()),
+            filler_weight: 1.0,
+            nbest: 0,
         }
     }
 }
@@ -81,7 +88,9 @@ pub struct Recognizer {
     game: Game,
     grammar: Grammar,
     decoder: Decoder,
-    phones: Decoder,
+    garbage: Option<Decoder>,
+    /// Whether the decoders' cepstral mean has adapted to this audio yet (see `decode_segment`).
+    warmed: bool,
     vad: Vad,
     cfg: RecognizerConfig,
 }
@@ -113,13 +122,46 @@ impl Recognizer {
         decoder: &DecoderConfig,
     ) -> Result<Self, RecognizerError> {
         let name = grammar.origin.display().to_string();
-        let phones = Decoder::new(&phone_loop_config(decoder, &cfg), &name, None)?;
-        let decoder = Decoder::new(decoder, &name, Some(&grammar.text))?;
+        let fillers = match &cfg.fillers {
+            Some(path) => {
+                let dict = Dictionary::load(&decoder.dict)?;
+                let all = load_fillers(path, &dict)?;
+                without_grammar_words(&all, &grammar.words()?, &dict)
+            }
+            None => Vec::new(),
+        };
+        // Every senone every frame: the two searches' scores must share one normalisation.
+        let mut base = decoder.clone();
+        base.extra_args.push(("-compallsen".into(), "yes".into()));
+        base.extra_args.push(("-bestpath".into(), "no".into()));
+        // The same dither noise in both (it is random): one seed.
+        base.extra_args.push(("-seed".into(), "1".into()));
+        let garbage = if fillers.is_empty() {
+            None
+        } else {
+            let mut g = base.clone();
+            g.log_file = base.log_file.with_extension("garbage.log");
+            g.nbest = 0;
+            Some(Decoder::new(
+                &g,
+                "garbage filler loop",
+                Some(&garbage_jsgf(&fillers, cfg.filler_weight)),
+            )?)
+        };
+        let decoder = Decoder::new(
+            &DecoderConfig {
+                nbest: cfg.nbest,
+                ..base
+            },
+            &name,
+            Some(&grammar.text),
+        )?;
         Ok(Self {
             game,
             grammar,
             decoder,
-            phones,
+            garbage,
+            warmed: false,
             vad: Vad::new(cfg.vad.clone()),
             cfg,
         })
@@ -167,36 +209,73 @@ impl Recognizer {
             .map(|i| i + 1)
             .unwrap_or(first);
         let samples = &seg.samples[first..last.max(first)];
-        let g = self.decoder.decode(samples)?;
-        let p = if g.text.is_empty() {
-            g.clone()
+        // PocketSphinx's live cepstral mean starts from a fixed prior and adapts at the end of
+        // each utterance; until then the features are off and the first utterance after start
+        // often decodes to nothing. So the first utterance with a background (not digital
+        // silence, whose speech-only mean would mislead it) is decoded twice, and the first pass
+        // only warms the mean up.
+        let snr_db = estimate_snr_db(samples);
+        let digital_silence = first > 0 || last < seg.samples.len();
+        let passes = if !self.warmed && !samples.is_empty() && !digital_silence {
+            self.warmed = true;
+            2
         } else {
-            self.phones.decode(samples)?
+            1
         };
+        // The garbage search runs on every utterance, even when the command search found
+        // nothing, so both decoders see the same audio history (cepstral mean). The two searches
+        // are independent: they run on two threads, so the wait after the end of speech is the
+        // slower of the two rather than their sum.
+        let (decoder, garbage) = (&mut self.decoder, &mut self.garbage);
+        let (g, gar) = std::thread::scope(|scope| {
+            let gar = garbage.as_mut().map(|d| {
+                scope.spawn(move || {
+                    let mut h = d.decode(samples);
+                    if passes == 2 {
+                        h = d.decode(samples);
+                    }
+                    h
+                })
+            });
+            let mut g = decoder.decode(samples);
+            if passes == 2 {
+                g = decoder.decode(samples);
+            }
+            let gar = gar.map(|j| {
+                j.join()
+                    .unwrap_or(Err(DecoderError::Decode("garbage search thread")))
+            });
+            (g, gar)
+        });
+        let g = g?;
+        let gar = gar.transpose()?;
         let decode_s = t0.elapsed().as_secs_f64();
-        let frames = g.n_frames.max((samples.len() / FRAME) as u32);
-        let conf = confidence(
+        let frames = g.n_frames;
+        let s_gar = match &gar {
+            Some(h) if !h.text.is_empty() => h.path_score_ln,
+            _ => f64::NEG_INFINITY,
+        };
+        let v = verdict(
             &self.cfg.confidence,
-            g.posterior_ln,
-            g.acoustic_ln,
-            p.acoustic_ln,
+            self.game,
+            &g.text,
+            g.path_score_ln,
+            s_gar,
             frames,
-            g.text.is_empty(),
+            snr_db,
         );
         Ok(Recognized {
             game: self.game,
-            command: Command::from_phrase(self.game, &g.text),
+            command: v.command,
             text: g.text,
-            confidence: conf,
+            confidence: v.confidence,
             start_s: seg.start_sample as f64 / RATE_HZ as f64,
             end_s: seg.end_sample as f64 / RATE_HZ as f64,
             decode_s,
-            posterior_ln: g.posterior_ln,
-            garbage_per_frame_ln: if frames > 0 {
-                (g.acoustic_ln - p.acoustic_ln) / frames as f64
-            } else {
-                0.0
-            },
+            llr_per_frame: v.llr_per_frame,
+            p_in_grammar: v.p_in_grammar,
+            snr_db,
+            garbage_text: gar.map(|h| h.text).unwrap_or_default(),
             forced: seg.forced,
             nbest: g.nbest,
         })

@@ -46,7 +46,7 @@ impl Default for VadConfig {
             min_level_dbfs: -65.0,
             start_frames: 4,
             preroll_s: 0.25,
-            hangover_s: 0.45,
+            hangover_s: 0.3,
             tail_s: 0.2,
             min_speech_s: 0.12,
             max_utterance_s: 8.0,

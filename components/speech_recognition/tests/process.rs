@@ -134,7 +134,7 @@ async fn spoken_command_on_audio_in_becomes_a_game_command() {
             break;
         }
     }
-    assert!(got.contains(&Command::TouchBall), "{got:?}");
+    assert!(got.contains(&Command::TouchBall), "{got:?} after {heard:?}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -1,5 +1,6 @@
-//! A safe PocketSphinx decoder: one acoustic model, one dictionary, a JSGF grammar search and a
-//! phone-loop search (the garbage model of the confidence, see [`crate::confidence`]).
+//! A safe PocketSphinx decoder: one acoustic model, one dictionary, a JSGF grammar search (and a
+//! phone-loop search). `speech_recognition` runs two of them per game, the command grammar and
+//! a filler-word loop, and compares their path scores for the confidence.
 //!
 //! Audio is 16 000 Hz mono signed 16-bit; the decoder works on 10 ms frames. Scores are in the
 //! decoder's log base (`logmath`, base 1.0001 by default) and converted here to natural logs.
@@ -27,6 +28,9 @@ pub struct DecoderConfig {
     pub log_file: PathBuf,
     /// More `-name value` options for the decoder (beams, weights).
     pub extra_args: Vec<(String, String)>,
+    /// Most distinct N-best sentences read after each utterance (0: none); at most 4 times as
+    /// many lattice paths are visited to find them.
+    pub nbest: usize,
 }
 
 impl DecoderConfig {
@@ -39,6 +43,7 @@ impl DecoderConfig {
             phone_lm: m.join("en-us-phone.lm.bin"),
             log_file: std::env::temp_dir().join(format!("pocketsphinx-{}.log", std::process::id())),
             extra_args: Vec::new(),
+            nbest: NBEST,
         }
     }
 }
@@ -64,22 +69,29 @@ pub enum DecoderError {
 pub struct Hypothesis {
     /// Words (grammar search) or phones (phone loop), space-separated; may be empty.
     pub text: String,
-    /// Path score (natural log, ≤ 0): acoustic plus weighted language/grammar score.
+    /// Viterbi path score (natural log, ≤ 0): acoustic log-likelihood plus weighted
+    /// grammar log-probability and insertion penalties. Comparable between two decoders on the
+    /// same audio only when both compute all senones (`-compallsen yes`), see
+    /// `speech_recognition::confidence`.
     pub path_score_ln: f64,
     /// Acoustic part of the path score (sum over the word or phone segments of the best path),
-    /// same units as `path_score_ln`.
+    /// natural log.
     pub acoustic_ln: f64,
     /// Lattice posterior of the best path (natural log, ≤ 0). PocketSphinx 5prealpha returns 0
     /// (probability 1) for grammar searches, so it only matters with other versions.
     pub posterior_ln: f64,
     /// Frames decoded (10 ms each).
     pub n_frames: u32,
-    /// Distinct sentences of the lattice's N best paths (up to [`NBEST`]) with their path
+    /// Distinct sentences of the lattice's N best paths (up to [`DecoderConfig::nbest`]) with their path
     /// scores, best first (empty for the phone loop).
     pub nbest: Vec<(String, f64)>,
 }
 
-/// How many N-best paths are read.
+/// PocketSphinx keeps acoustic (senone) scores, hence path scores, right-shifted by this many
+/// bits (`SENSCR_SHIFT`): one unit of a path score is 2^10 units of the logmath base.
+pub const SENSCR_SHIFT: u32 = 10;
+
+/// How many distinct N-best sentences are read by default.
 pub const NBEST: usize = 20;
 
 /// A PocketSphinx decoder with a grammar search named `grammar` and a phone loop named `phones`.
@@ -88,6 +100,7 @@ pub struct Decoder {
     log_file: PathBuf,
     grammar_name: String,
     phones_only: bool,
+    nbest: usize,
 }
 
 // SAFETY: see the module doc; the raw pointer is owned and only used through &mut self.
@@ -99,6 +112,7 @@ impl std::fmt::Debug for Decoder {
     }
 }
 
+const SCALE: f64 = (1u32 << SENSCR_SHIFT) as f64;
 const GRAMMAR_SEARCH: &str = "grammar";
 const PHONE_SEARCH: &str = "phones";
 /// Samples per `ps_process_raw` call (128 ms).
@@ -132,20 +146,22 @@ impl Decoder {
             }
         }
         let _ = std::fs::write(&config.log_file, b"");
-        let args: Vec<String> = vec![
-            "-hmm".into(),
-            config.hmm_dir.display().to_string(),
-            "-dict".into(),
-            config.dict.display().to_string(),
-            "-logfn".into(),
-            config.log_file.display().to_string(),
-            "-bestpath".into(),
-            "yes".into(),
+        let defaults: Vec<(&str, String)> = vec![
+            ("-hmm", config.hmm_dir.display().to_string()),
+            ("-dict", config.dict.display().to_string()),
+            ("-logfn", config.log_file.display().to_string()),
+            ("-bestpath", "yes".into()),
             // Digital silence (exact zeros) breaks the log-energy features: add ±1 LSB dither.
-            "-dither".into(),
-            "yes".into(),
+            ("-dither", "yes".into()),
         ];
-        let mut args = args;
+        // `extra_args` override the defaults of the same name (the parser refuses duplicates).
+        let mut args: Vec<String> = Vec::new();
+        for (k, v) in defaults {
+            if !config.extra_args.iter().any(|(x, _)| x == k) {
+                args.push(k.to_string());
+                args.push(v);
+            }
+        }
         for (k, v) in &config.extra_args {
             args.push(k.clone());
             args.push(v.clone());
@@ -181,6 +197,7 @@ impl Decoder {
             log_file: config.log_file.clone(),
             grammar_name: grammar_name.to_string(),
             phones_only: false,
+            nbest: config.nbest,
         };
         let phones = cstring(PHONE_SEARCH)?;
         let lm = cstring(&config.phone_lm.display().to_string())?;
@@ -263,11 +280,11 @@ impl Decoder {
             while !seg.is_null() {
                 let (mut a, mut l, mut b) = (0i32, 0i32, 0i32);
                 sys::ps_seg_prob(seg, &mut a, &mut l, &mut b);
-                acoustic += sys::logmath_log_to_ln(lmath, a);
+                acoustic += sys::logmath_log_to_ln(lmath, a) * SCALE;
                 seg = sys::ps_seg_next(seg);
             }
             let mut nbest: Vec<(String, f64)> = Vec::new();
-            if want_posterior && !text.is_empty() {
+            if want_posterior && !text.is_empty() && self.nbest > 0 {
                 let mut nb = sys::ps_nbest(self.ps);
                 let mut read = 0;
                 while !nb.is_null() {
@@ -279,13 +296,13 @@ impl Decoder {
                     let h = sys::ps_nbest_hyp(nb, &mut sc);
                     if !h.is_null() {
                         let t = CStr::from_ptr(h).to_string_lossy().trim().to_string();
-                        let sc = sys::logmath_log_to_ln(lmath, sc);
+                        let sc = sys::logmath_log_to_ln(lmath, sc) * SCALE;
                         if !nbest.iter().any(|(x, _)| *x == t) {
                             nbest.push((t, sc));
                         }
                     }
                     read += 1;
-                    if read >= 4 * NBEST || nbest.len() >= NBEST {
+                    if read >= 4 * self.nbest || nbest.len() >= self.nbest {
                         sys::ps_nbest_free(nb);
                         break;
                     }
@@ -295,7 +312,7 @@ impl Decoder {
                 nbest,
                 acoustic_ln: acoustic,
                 text,
-                path_score_ln: sys::logmath_log_to_ln(lmath, score),
+                path_score_ln: sys::logmath_log_to_ln(lmath, score) * SCALE,
                 posterior_ln: post.min(0.0),
                 n_frames: sys::ps_get_n_frames(self.ps).max(0) as u32,
             })
