@@ -1,28 +1,35 @@
-// Click-to-command-packet latency of the command panel (scripts/bench panel).
-//   node bench_panel.mjs --url http://127.0.0.1:PORT/ --robot 127.0.0.2 --port P --clicks N
-// This process stands in for the robot: it owns the robot's command port (UDP) where the bridge
-// sends the 11-byte packet. Each sample: GoToPosition armed (key g, not timed), then a mouse
-// click on the field in headless Chromium; timed from just before the click (including
-// Playwright's input dispatch to the browser) to the packet's arrival, and to the server's reply
-// at the page. Clocks: performance.timeOrigin + performance.now() in node and in the page, both
-// wall-clock based with sub-millisecond resolution, on one host.
-import dgram from 'node:dgram';
+// Click-to-command latency of the command panel (scripts/bench panel).
+//   node bench_panel.mjs --url http://127.0.0.1:PORT/ --echo "robocog topic echo nao/command ..." --clicks N
+// The panel sends a coach request; the Executive's coach machine checks it against the game
+// state and the world model, answers it and publishes the command on `nao/command`, which the
+// bridge turns into the robot's UDP packet (that last hop is `scripts/bench coach`'s). Each
+// sample: GoToPosition armed (key g, not timed), then a mouse click on the field in headless
+// Chromium; timed from just before the click (including Playwright's input dispatch to the
+// browser) to the checked command's stamp on `nao/command` (the Executive stamps it with the
+// system clock as it publishes; read with `robocog topic echo`), and to the server's reply at the
+// page. Clocks: performance.timeOrigin + performance.now() in node and in the page, and the
+// publisher's system clock: all wall-clock, on one host.
+import { spawn } from 'node:child_process';
+import readline from 'node:readline';
 import { performance } from 'node:perf_hooks';
 import { launch, fail, arg, until, clickField } from './lib.mjs';
 
 const url = arg('url');
-const robot = arg('robot', '127.0.0.2');
-const port = Number(arg('port'));
+const echoCmd = JSON.parse(arg('echo')); // [program, ...args]
 const clicks = Number(arg('clicks', '200'));
 const now = () => performance.timeOrigin + performance.now();
 
-const sock = dgram.createSocket('udp4');
+// Every nao/command as JSON, one per line.
+const echo = spawn(echoCmd[0], echoCmd.slice(1), { stdio: ['ignore', 'pipe', 'inherit'] });
 let waiting = null;
-sock.on('message', (msg) => {
-  const t = now();
-  if (waiting) { const w = waiting; waiting = null; w({ t, msg }); }
+readline.createInterface({ input: echo.stdout }).on('line', (line) => {
+  let m;
+  try { m = JSON.parse(line); } catch { return; }
+  const c = m.body !== undefined ? m : m.message || m.msg || m;
+  if (c.body !== 'GoToPosition' || !c.header) return;
+  const t = Number(c.header.stamp_ns) / 1e6;
+  if (waiting) { const w = waiting; waiting = null; w({ t, c }); }
 });
-await new Promise((res, rej) => { sock.once('error', rej); sock.bind(port, robot, res); });
 
 const browser = await launch();
 const rows = [];
@@ -31,6 +38,8 @@ try {
   await page.goto(url + '#coach');
   await until('the page to connect', 10000, async () => (await page.textContent('#conn')) === 'connected');
   await until('the buttons', 5000, async () => page.locator('button[data-name="GoToPosition"]').count());
+  // The coach machine moves the robot only in PLAYING.
+  await until('the game to be PLAYING', 60000, async () => (await page.textContent('#game-state')).startsWith('PLAYING'));
   await page.evaluate(() => {
     window.__replies = [];
     const ws = window.panel.state.ws;
@@ -45,14 +54,13 @@ try {
     await page.keyboard.press('g');
     const packet = new Promise((res, rej) => {
       waiting = res;
-      setTimeout(() => rej(new Error(`no packet for click ${i} within 5 s`)), 5000);
+      setTimeout(() => rej(new Error(`no checked command on nao/command for click ${i} within 5 s`)), 5000);
     });
     const t0 = now();
     await clickField(page, x, y);
-    const { t, msg } = await packet;
-    if (msg.length !== 11 || msg[0] !== 1) fail(`click ${i}: unexpected packet ${msg.toString('hex')}`);
-    const px = msg.readFloatLE(3), py = msg.readFloatLE(7);
-    if (Math.hypot(px - x, py - y) > 60) fail(`click ${i}: packet target (${px}, ${py}) is not near (${x}, ${y})`);
+    const { t, c } = await packet;
+    const px = c.target.x_mm, py = c.target.y_mm;
+    if (Math.hypot(px - x, py - y) > 60) fail(`click ${i}: command target (${px}, ${py}) is not near (${x}, ${y})`);
     const reply = await until('the reply', 5000, async () => page.evaluate(() => window.__replies.shift()));
     if (i >= 5) rows.push({ packet_ms: t - t0, reply_ms: reply - t0 }); // 5 warm-up clicks
     await new Promise((r) => setTimeout(r, 20));
@@ -61,7 +69,7 @@ try {
   fail(e && e.stack ? e.stack : String(e));
 } finally {
   await browser.close();
-  sock.close();
+  echo.kill();
 }
 
 const pct = (xs, p) => { const s = xs.slice().sort((a, b) => a - b); return s[Math.min(s.length - 1, Math.floor((p / 100) * s.length))]; };
@@ -70,13 +78,13 @@ const f = (v) => v.toFixed(2).padStart(8);
 console.log(`\ncommand panel: ${rows.length} clicks (after 5 warm-up), GoToPosition + field click`);
 console.log('| path                                   |   p50 ms |   p99 ms |   max ms |');
 console.log('|----------------------------------------|---------:|---------:|---------:|');
-console.log(`| click -> command packet at the robot   | ${f(pct(packet, 50))} | ${f(pct(packet, 99))} | ${f(Math.max(...packet))} |`);
+console.log(`| click -> checked command (nao/command) | ${f(pct(packet, 50))} | ${f(pct(packet, 99))} | ${f(Math.max(...packet))} |`);
 console.log(`| click -> server's reply at the page    | ${f(pct(reply, 50))} | ${f(pct(reply, 99))} | ${f(Math.max(...reply))} |`);
 console.log(JSON.stringify({
   clicks: rows.length,
-  click_to_packet_p50_ms: pct(packet, 50),
-  click_to_packet_p99_ms: pct(packet, 99),
-  click_to_packet_max_ms: Math.max(...packet),
+  click_to_command_p50_ms: pct(packet, 50),
+  click_to_command_p99_ms: pct(packet, 99),
+  click_to_command_max_ms: Math.max(...packet),
   click_to_reply_p50_ms: pct(reply, 50),
   click_to_reply_p99_ms: pct(reply, 99),
 }));

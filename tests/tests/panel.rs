@@ -15,7 +15,6 @@
 
 use interfaces::msg::command::{Command, CommandSource};
 use interfaces::msg::nao::NaoBody;
-use interfaces::msg::speech::SayRequest;
 use interfaces::msg::tracking::{BallTrack, BallTrackState, PixelWindow};
 use interfaces::{Bus, topics};
 use robocog_tests::*;
@@ -87,8 +86,19 @@ name = "command_generator"
 binary = "command_generator"
 args = ["--http", "${{panel_http}}", "--camera-hz", "5"]
 depends_on = ["nao_bridge"]
-external_inputs = ["speech/say", "speech/speaking", "speech/utterance", "game/command",
-                   "executive/transitions", "executive/log", "vision/ball", "vision/ball_events"]
+external_inputs = ["speech/speaking", "speech/utterance", "vision/ball", "vision/ball_events"]
+
+# The coach machine: it answers and checks the panel's requests, then commands the robot.
+[[component]]
+name = "deep_representation"
+binary = "deep_representation"
+args = ["--scene", "coach"]
+
+[[component]]
+name = "executive"
+binary = "executive"
+args = ["--game", "coach"]
+depends_on = ["nao_bridge", "deep_representation"]
 
 [[component]]
 name = "rgbd"
@@ -140,22 +150,15 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
     let answers = bus.subscriber(&topics::GAME_ANSWER).await.unwrap();
     let diag = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
 
-    // A stand-in for the Executive's confirmation: it says what the panel asked.
+    // What the panel asks (coach requests, game commands) and what the Executive says.
+    let requests = bus.subscriber(&topics::COACH_REQUEST).await.unwrap();
+    let spoken = bus.subscriber(&topics::SPEECH_SAY).await.unwrap();
     let game_commands = bus.subscriber(&topics::GAME_COMMAND).await.unwrap();
-    let say = bus.publisher(&topics::SPEECH_SAY).await.unwrap();
     let game_seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let seen = game_seen.clone();
     tokio::spawn(async move {
         while let Ok(c) = game_commands.recv().await {
             seen.lock().unwrap().push((c.command, c.source));
-            if c.source == CommandSource::Panel && c.command == Command::GoToPosition {
-                let mut m = SayRequest {
-                    id: 1,
-                    text: "going to my position".into(),
-                    ..Default::default()
-                };
-                say.publish(&mut m).await.unwrap();
-            }
         }
     });
 
@@ -313,16 +316,43 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
         assert!(names.iter().any(|n| n == step), "no {step} step: {names:?}");
     }
 
-    // Only the accepted commands reached the bus: GoToPosition, then LookLeft (raw socket).
+    // Only the accepted commands left the panel, as coach requests: GoToPosition, then LookLeft
+    // (raw socket); none went to the robot directly.
+    let mut asked = Vec::new();
+    while let Some(r) = requests.try_recv() {
+        asked.push((
+            r.command.body,
+            r.command.head,
+            r.command.target,
+            r.command.source,
+        ));
+    }
+    assert_eq!(asked.len(), 2, "{asked:?}");
+    assert_eq!(asked[0].0, NaoBody::GoToPosition);
+    assert_eq!((asked[0].2.x_mm, asked[0].2.y_mm), (x, y));
+    assert_eq!(asked[1].1, interfaces::msg::nao::NaoHead::LookLeft);
+    assert!(asked.iter().all(|c| c.3 == "panel"));
+    // The coach machine answered them aloud and sent them on, as the Executive.
     let mut sent = Vec::new();
     while let Some(c) = nao_commands.try_recv() {
         sent.push((c.body, c.head, c.target, c.source));
     }
-    assert_eq!(sent.len(), 2, "{sent:?}");
-    assert_eq!(sent[0].0, NaoBody::GoToPosition);
-    assert_eq!((sent[0].2.x_mm, sent[0].2.y_mm), (x, y));
-    assert_eq!(sent[1].1, interfaces::msg::nao::NaoHead::LookLeft);
-    assert!(sent.iter().all(|c| c.3 == "panel"));
+    assert!(
+        sent.iter()
+            .any(|c| c.0 == NaoBody::GoToPosition && (c.2.x_mm, c.2.y_mm) == (x, y)),
+        "{sent:?}"
+    );
+    assert!(
+        sent.iter()
+            .any(|c| c.1 == interfaces::msg::nao::NaoHead::LookLeft),
+        "{sent:?}"
+    );
+    assert!(sent.iter().all(|c| c.3 == "executive"), "{sent:?}");
+    let mut said = Vec::new();
+    while let Some(m) = spoken.try_recv() {
+        said.push(m.text.to_lowercase());
+    }
+    assert!(said.iter().any(|t| t.contains("position")), "{said:?}");
     let games: Vec<_> = game_seen.lock().unwrap().clone();
     assert!(
         games.contains(&(Command::TouchBall, CommandSource::Panel)),

@@ -2,13 +2,14 @@
 //!
 //! Subscribes to what both games publish, keeps the latest value of each state topic in the
 //! [`Hub`] (throttled per page, see [`STATE_RATES`]) and passes events on; publishes the accepted
-//! commands on `nao/command`, `game/command` and `game/answer`. Camera frames are decimated to
+//! commands on `coach/request`, `game/command` and `game/answer`. Camera frames are decimated to
 //! `camera_hz` before they are encoded, so a 30 Hz camera costs a few encodes a second.
 
 use crate::camera;
 use crate::panel::Outgoing;
 use crate::server::{Hub, router};
 use interfaces::msg::Message;
+use interfaces::msg::nao::CoachRequest;
 use interfaces::{Bus, Shutdown, Subscriber, Topic, topics};
 use serde::Serialize;
 use serde_json::json;
@@ -248,15 +249,19 @@ async fn camera_task(
 }
 
 async fn publish_task(bus: Bus, mut commands: mpsc::Receiver<Outgoing>) -> anyhow::Result<()> {
-    let nao = bus.publisher(&topics::NAO_COMMAND).await?;
+    let coach = bus.publisher(&topics::COACH_REQUEST).await?;
     let game = bus.publisher(&topics::GAME_COMMAND).await?;
     let answer = bus.publisher(&topics::GAME_ANSWER).await?;
     while let Some(out) = commands.recv().await {
-        // The Nao first: it is the one with a deadline.
-        if let Some(mut m) = out.nao {
-            nao.publish(&mut m).await?;
-        }
-        if let Some(mut m) = out.game {
+        if let Some(command) = out.nao {
+            // A coach command: the Executive's coach machine checks and answers it, then sends
+            // it to the robot. Not also on `game/command`, or the machine would get it twice.
+            let mut m = CoachRequest {
+                command,
+                ..CoachRequest::default()
+            };
+            coach.publish(&mut m).await?;
+        } else if let Some(mut m) = out.game {
             game.publish(&mut m).await?;
         }
         if let Some(mut m) = out.answer {

@@ -15,10 +15,12 @@
 //! - **Every request is checked on the server** ([`protocol`]) before anything is published;
 //!   refusals carry a reason the page shows, are counted on `diagnostics` as
 //!   `rejected/<reason>`, and are never forwarded.
-//! - **Commands go where voice commands go**: coach commands on `nao/command` (a
-//!   [`interfaces::msg::nao::NaoCommand`], `source = "panel"`) and on `game/command` (a
-//!   [`interfaces::msg::command::GameCommand`], `source = Panel`, confidence 1); touch commands on
-//!   `game/command`; yes/no on `game/answer`.
+//! - **Commands go through the Executive, like voice commands**: coach commands as a
+//!   [`interfaces::msg::nao::CoachRequest`] on `coach/request` (its `command` a `NaoCommand` with
+//!   `source = "panel"`), which the Executive's coach machine answers, checks against the game
+//!   state and the world model, and only then sends on `nao/command`; touch commands on
+//!   `game/command` (a [`interfaces::msg::command::GameCommand`], `source = Panel`, confidence
+//!   1); yes/no on `game/answer`. The panel never commands the robot directly.
 //!
 //! Field frame (coach view): millimetres, origin at the centre spot, x towards the opponent
 //! goal, y to the left, angles counter-clockwise from +x: the frame of `interfaces::msg::nao`.

@@ -6,8 +6,9 @@ use std::net::SocketAddr;
 use std::process::ExitCode;
 
 /// The command panel: a web page with the games' buttons, the Nao coach's field and the robot's
-/// answers. Open the printed address in a browser. Commands go on `nao/command`, `game/command`
-/// and `game/answer`, checked first; refusals are shown on the page and counted on
+/// answers. Open the printed address in a browser. Commands go on `coach/request` (the
+/// Executive's coach machine checks them and commands the robot), `game/command` and
+/// `game/answer`, checked first; refusals are shown on the page and counted on
 /// `diagnostics` (`rejected/<reason>`).
 ///
 /// By default only this machine can open it (127.0.0.1). To serve another machine, bind its
@@ -38,7 +39,7 @@ fn main() -> ExitCode {
     let interface = Interface {
         hardware: vec![format!("http:{}", args.http)],
         ..Interface::new("command_generator")
-            .publishes(&topics::NAO_COMMAND)
+            .publishes(&topics::COACH_REQUEST)
             .publishes(&topics::GAME_COMMAND)
             .publishes(&topics::GAME_ANSWER)
             .subscribes(&topics::NAO_WORLD_MODEL)

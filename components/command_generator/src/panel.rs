@@ -47,7 +47,7 @@ pub struct Entry {
     pub reason: String,
     /// The field target, when the command has one.
     pub target: Option<FieldPoint>,
-    /// Whether it went on `nao/command` (and so which channels it holds).
+    /// Whether it was a Nao command (for `coach/request`; and so which channels it holds).
     #[serde(skip)]
     body: bool,
     #[serde(skip)]
