@@ -9,18 +9,26 @@
 //!   flags `--target-hue --target-saturation --target-diameter` set one at start (a manifest's
 //!   way to give it); a message replaces it.
 //!
-//! Publishes, per processed frame:
+//! Publishes, per processed frame, in frame order:
 //! - `vision/ball` ([`BallTrack`]): state, window, centroid, 3D centre in the camera optical
-//!   frame (the frame's `frame_id`), measured diameter, confidence; stamped with the frame's stamp
-//!   and carrying its sequence number (`frame_seq`).
+//!   frame (the frame's `frame_id`), measured diameter, confidence, and (through the DR) the
+//!   centre in `world` and in the robot's base frame; stamped with the frame's stamp and carrying
+//!   its sequence number (`frame_seq`).
 //! - `vision/ball_events` ([`BallEvent`]): detected, out of view, lost, detection timed out.
+//!
+//! Calls (unless `--no-dr`): `dr/transform` (world and robot from the camera frame at each
+//! frame's stamp) and `dr/update` (the ball node `--ball-node`, parent `world`, at the frame's
+//! stamp, when the track's confidence reaches `--dr-update-confidence`); see [`crate::dr`].
+//! The DR is asked in a second stage, a task fed by a bounded queue: tracking the next frame
+//! never waits for the DR. A stage that falls behind (more than [`DR_BEHIND`] tracks queued)
+//! publishes the queued tracks in the camera frame only (`dr_skipped_behind`); with no DR
+//! (missing, or silent past `--dr-timeout-ms`), tracks are published in the camera frame only,
+//! counted (`dr_unavailable`) and logged at most once a second, and the DR is asked again after
+//! `--dr-retry-s`. `launch/eyes_sim.toml` runs without a DR and passes `--no-dr`.
 //!
 //! A frame that decodes but is inconsistent (sizes, intrinsics) is counted in the bus counter
 //! `bad_frames` (published on `diagnostics`), logged at most once a second, and skipped; so is an
 //! out-of-range target (`bad_targets`). Nothing panics on input.
-//!
-//! Not yet: the ball's position in the robot frame and its update in the deep representation
-//! (they need the camera pose from joint states and the DR client).
 
 use std::time::{Duration, Instant};
 
@@ -32,6 +40,7 @@ use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Header, Shutdown, topics};
 
+use crate::dr::{DrLink, DrOptions};
 use crate::{BallTracker, Target, TrackError, TrackEvent, TrackOutput, TrackState, TrackerConfig};
 
 /// The component's flags.
@@ -53,6 +62,25 @@ pub struct Config {
     /// that falls behind jumps to the newest frame and counts the others (`skipped_frames`).
     #[arg(long)]
     pub every_frame: bool,
+    /// Do not use the deep representation: tracks in the camera frame only, no ball node
+    /// updates, and no `dr/*` calls declared (for graphs without a DR).
+    #[arg(long)]
+    pub no_dr: bool,
+    /// The DR node of the ball, updated with its position (its parent must be `world`).
+    #[arg(long, default_value = "ball")]
+    pub ball_node: String,
+    /// The robot's base frame in the DR, for `centre_robot_m`.
+    #[arg(long, default_value = "base_footprint")]
+    pub robot_frame: String,
+    /// Smallest track confidence, [0, 1], that updates the DR's ball node.
+    #[arg(long, default_value_t = 0.5)]
+    pub dr_update_confidence: f64,
+    /// Time-out of each DR call, ms.
+    #[arg(long, default_value_t = 100)]
+    pub dr_timeout_ms: u64,
+    /// After the DR was missing or silent, ask again after this long, s.
+    #[arg(long, default_value_t = 1.0)]
+    pub dr_retry_s: f64,
 }
 
 impl Config {
@@ -74,13 +102,23 @@ impl Config {
 }
 
 /// What the component declares for `--describe`.
-pub fn interface() -> Interface {
-    Interface::new("ball_tracker")
+pub fn interface(config: &Config) -> Interface {
+    let i = Interface::new("ball_tracker")
         .subscribes(&topics::VISION_RGBD)
         .subscribes(&topics::VISION_BALL_TARGET)
         .publishes(&topics::VISION_BALL)
-        .publishes(&topics::VISION_BALL_EVENTS)
+        .publishes(&topics::VISION_BALL_EVENTS);
+    if config.no_dr {
+        i
+    } else {
+        i.calls(&topics::DR_TRANSFORM).calls(&topics::DR_UPDATE)
+    }
 }
+
+/// Tracks queued for the DR stage beyond which it stops asking the DR until it has caught up.
+pub const DR_BEHIND: usize = 3;
+/// Capacity of the queue between tracking and the DR stage.
+const STAGE_QUEUE: usize = 16;
 
 /// Why a frame was skipped.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -230,6 +268,16 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
             t.diameter_m
         );
     }
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&config.dr_update_confidence),
+        "--dr-update-confidence {} is not in [0, 1]",
+        config.dr_update_confidence
+    );
+    anyhow::ensure!(
+        config.dr_retry_s.is_finite() && config.dr_retry_s >= 0.0,
+        "--dr-retry-s {} must be a finite time >= 0",
+        config.dr_retry_s
+    );
     let frames = bus
         .subscriber_named::<RgbdFrame>(topics::VISION_RGBD.name(), FRAME_QUEUE)
         .await?;
@@ -237,6 +285,80 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let tracks = bus.publisher(&topics::VISION_BALL).await?;
     let events = bus.publisher(&topics::VISION_BALL_EVENTS).await?;
     let counters = bus.counters().clone();
+    let dr = (!config.no_dr).then(|| {
+        DrLink::new(
+            bus.clone(),
+            DrOptions {
+                robot_frame: config.robot_frame.clone(),
+                ball_node: config.ball_node.clone(),
+                timeout: Duration::from_millis(config.dr_timeout_ms.max(1)),
+                retry: Duration::from_secs_f64(config.dr_retry_s),
+                update_confidence: config.dr_update_confidence,
+            },
+        )
+    });
+    // The second stage: the DR, then publishing, in frame order.
+    let (to_stage, stage_rx) =
+        tokio::sync::mpsc::channel::<(BallTrack, Vec<BallEvent>)>(STAGE_QUEUE);
+    let stage = tokio::spawn(output_stage(stage_rx, dr, tracks, events, counters.clone()));
+    let result = track_frames(
+        &config,
+        &mut handler,
+        &frames,
+        &targets,
+        &to_stage,
+        &counters,
+        &mut shutdown,
+    )
+    .await;
+    drop(to_stage);
+    // Let the stage publish what is queued (it ends when the queue is empty and closed).
+    // Its error, if any, is the cause of the tracking loop's.
+    match tokio::time::timeout(Duration::from_secs(2), stage).await {
+        Ok(Ok(Err(e))) => Err(e.context("publishing the tracks")),
+        Ok(Err(e)) => anyhow::bail!("the output stage failed: {e}"),
+        Ok(Ok(Ok(()))) | Err(_) => result,
+    }
+}
+
+/// Publishes tracks and their events in order, each track placed in the world by the DR first
+/// (when there is one and the stage is not behind).
+async fn output_stage(
+    mut queue: tokio::sync::mpsc::Receiver<(BallTrack, Vec<BallEvent>)>,
+    mut dr: Option<DrLink>,
+    tracks: interfaces::Publisher<BallTrack>,
+    events: interfaces::Publisher<BallEvent>,
+    counters: std::sync::Arc<interfaces::bus::Counters>,
+) -> anyhow::Result<()> {
+    while let Some((mut track, evs)) = queue.recv().await {
+        if let Some(dr) = dr.as_mut() {
+            if queue.len() > DR_BEHIND {
+                if track.has_centre_m {
+                    counters.incr("dr_skipped_behind");
+                }
+            } else {
+                dr.process(&mut track).await;
+            }
+        }
+        tracks.publish(&mut track).await?;
+        for mut e in evs {
+            tracing::info!(frame_seq = e.frame_seq, "ball {:?}", e.kind);
+            events.publish(&mut e).await?;
+        }
+    }
+    Ok(())
+}
+
+/// The tracking loop: frames and targets in, tracks to the output stage.
+async fn track_frames(
+    config: &Config,
+    handler: &mut Handler,
+    frames: &interfaces::Subscriber<RgbdFrame>,
+    targets: &interfaces::Subscriber<BallTarget>,
+    to_stage: &tokio::sync::mpsc::Sender<(BallTrack, Vec<BallEvent>)>,
+    counters: &std::sync::Arc<interfaces::bus::Counters>,
+    shutdown: &mut Shutdown,
+) -> anyhow::Result<()> {
     let mut warn_limit = RateLimiter::new(Duration::from_secs(1));
     loop {
         tokio::select! {
@@ -264,11 +386,19 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                     frame = newer;
                 }
                 match handler.process(&frame) {
-                    Ok((mut track, evs)) => {
-                        tracks.publish(&mut track).await?;
-                        for mut e in evs {
-                            tracing::info!(frame_seq = e.frame_seq, "ball {:?}", e.kind);
-                            events.publish(&mut e).await?;
+                    Ok(out) if config.every_frame => {
+                        // Offline evaluation: wait for the stage rather than drop a track.
+                        to_stage.send(out).await?;
+                    }
+                    Ok(out) => {
+                        if let Err(e) = to_stage.try_send(out) {
+                            if matches!(e, tokio::sync::mpsc::error::TrySendError::Closed(_)) {
+                                anyhow::bail!("the output stage stopped");
+                            }
+                            counters.incr("dropped_tracks");
+                            if let Some(suppressed) = warn_limit.allow(Instant::now()) {
+                                tracing::warn!(suppressed, "the output stage is stuck, a track was dropped: {e}");
+                            }
                         }
                     }
                     Err(e) => {
@@ -349,6 +479,93 @@ mod tests {
             } else {
                 assert!(events.is_empty());
             }
+        }
+    }
+
+    /// The game's ball (hue 52 deg, saturation 0.85, 7 cm; rendered RGB (230, 203, 34)) as the
+    /// tracker is told to look for it in `launch/eyes_game.toml`.
+    fn yellow_target() -> Target {
+        Target {
+            hue_deg: 51.7,
+            saturation: 0.85,
+            diameter_m: 0.07,
+        }
+    }
+
+    #[test]
+    fn the_game_yellow_ball_is_tracked_from_half_a_metre_to_1_2_m_with_the_head_moving() {
+        use interfaces::msg::tracking::SimBall;
+        use nalgebra::{Point3, Vector3};
+        use rgbd::sim::look_at;
+        use rgbd::world::{WorldSim, hsv_to_rgb};
+        // The tracker's own colour conversion agrees with the flags' hue and saturation.
+        let [r, g, b] = hsv_to_rgb(52.0, 0.85, rgbd::world::BALL_VALUE);
+        let (h, s, _) = rgb_to_hsv(r, g, b);
+        assert!(
+            (h - 51.7).abs() < 0.05 && (s - 0.85).abs() < 0.005,
+            "{h} {s}"
+        );
+        // Loki's head camera (neck pitched down) and the ball on the table or held up.
+        let eye = Point3::new(0.074, 0.0, 1.473);
+        let places = [
+            ([0.5, 0.0, 1.2], true),
+            ([0.45, 0.1, 0.785], false),
+            ([0.75, 0.05, 0.785], false),
+            ([1.0, -0.25, 0.785], false),
+        ];
+        for (centre, held) in places {
+            let mut sim = WorldSim::new(
+                look_at(eye, Point3::from(centre), Vector3::z()),
+                SensorModel::default(),
+                3,
+            );
+            sim.set_ball(SimBall {
+                present: true,
+                centre_world_m: centre,
+                diameter_m: 0.07,
+                hue_deg: 52.0,
+                saturation: 0.85,
+                held,
+                ..Default::default()
+            });
+            let mut h = Handler::new(TrackerConfig::default(), Some(yellow_target())).unwrap();
+            let mut worst: f64 = 0.0;
+            let mut distance = 0.0;
+            for i in 0..30 {
+                // The gaze sweeps 12 cm around the ball at about 1 rad/s.
+                let a = i as f64 * 0.2;
+                let target =
+                    Point3::from(centre) + Vector3::new(0.0, 0.06 * a.sin(), 0.04 * a.cos());
+                sim.set_world_from_optical(look_at(eye, target, Vector3::z()));
+                let f = sim.next_frame(1000.0 + i as f64 / 30.0).unwrap().unwrap();
+                let truth = sim.truth().unwrap();
+                assert!(truth.in_view);
+                distance = Vector3::from(truth.centre_camera_m).norm();
+                let mut m = convert::into_msg(f, "head_rgbd_optical_frame");
+                m.header.seq = i;
+                let (track, _) = h.process(&m).unwrap();
+                assert!(
+                    track.found && track.has_centre_m,
+                    "{centre:?} frame {i}: {track:?}"
+                );
+                assert_eq!(track.state, BallTrackState::Tracking);
+                let err = (0..3)
+                    .map(|k| (track.centre_m[k] - truth.centre_camera_m[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                worst = worst.max(err);
+            }
+            assert!(
+                worst < 0.01,
+                "{centre:?} ({distance:.2} m): error up to {:.1} mm",
+                worst * 1e3
+            );
+            assert!((0.45..=1.25).contains(&distance), "{distance}");
+            eprintln!(
+                "yellow ball at {centre:?}{} {distance:.2} m away, head moving: 3D error max {:.2} mm",
+                if held { " (held)" } else { "" },
+                worst * 1e3
+            );
         }
     }
 

@@ -9,9 +9,11 @@
 //! (seconds), never read from a clock.
 //!
 //! The component ([`component`], the `ball_tracker` binary) runs the tracker on `vision/rgbd`
-//! and publishes `vision/ball` and `vision/ball_events`.
+//! and publishes `vision/ball` and `vision/ball_events`; [`dr`] places the ball in the world and
+//! robot frames through the deep representation and keeps its ball node up to date.
 
 pub mod component;
+pub mod dr;
 pub mod hsv;
 pub mod tracker;
 pub mod types;

@@ -18,7 +18,9 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let config = args.config;
-    node::run(args.node, component::interface(), move |bus, shutdown| {
-        component::run(bus, config, shutdown)
-    })
+    node::run(
+        args.node,
+        component::interface(&config),
+        move |bus, shutdown| component::run(bus, config, shutdown),
+    )
 }

@@ -5,13 +5,33 @@
 //!   the camera's optical frame (`--frame-id`, default `head_rgbd_optical_frame` of
 //!   `models/loki.urdf`). About 1.5 MB at 640x480, so the publisher puts it in shared memory.
 //! - `sim/ball_truth` ([`BallTruth`], sim driver only): the ball's true centre for the frame
-//!   just published (same stamp, `frame_seq` = the frame's sequence number).
+//!   just published (same stamp, `frame_seq` = the frame's sequence number), in the optical
+//!   frame and the world; none for a frame without a ball (`--ball-from-topic`, ball absent).
+//!
+//! Subscribes (sim driver, with the flags above): `body/joint_states` ([`JointStates`]) and
+//! `sim/ball` ([`SimBall`]), the newest of each before every frame. Joint values that are not
+//! finite are ignored and counted (`joint_states_non_finite`), values beyond the URDF limits
+//! clamped and counted (`joint_states_clamped`); chain joints a state does not name keep their
+//! value (logged once); frames rendered while the newest joint state is older than
+//! [`crate::world::MAX_JOINT_STATE_AGE_NS`] are counted (`joint_states_stale_frames`) and logged
+//! at most once a second.
 //!
 //! Drivers (`--driver`), both behind the library's [`RgbdDriver`] trait:
-//! - `sim`: renders the simulated table scene ([`crate::scenario`]) at `--fps` (default 30 Hz) on
-//!   the bus clock; frames are stamped with the clock time they were rendered at. The camera
-//!   pose is `--camera-pose` (default: 1.5 m high, 30° down; see [`CameraPose`]); the ball
-//!   follows `--scenario`.
+//! - `sim`: renders a simulated table scene at `--fps` (default 30 Hz) on the bus clock.
+//!   - The camera: `--camera-pose` (fixed; default 1.5 m high, 30° down; see [`CameraPose`]), or
+//!     with `--camera-from-joints` the pose of the URDF's optical frame `--frame-id` computed
+//!     from `body/joint_states` ([`HeadCamera`]; the robot's `base_footprint` at `--robot-pose`,
+//!     the world origin by default; the URDF is `--urdf`, else `models/loki.urdf` found as the
+//!     deep representation finds it). Before the first joint state the camera is at the URDF's
+//!     rest posture (all joints 0, clamped into their limits), which the log says once.
+//!   - The ball: scripted by `--scenario` over the lab scene (a table 1.2 m ahead), or with
+//!     `--ball-from-topic` the simulated world's ball on `sim/ball` ([`SimBall`]) over the
+//!     game's scene ([`crate::sim::Scene::game`]: a table 0.4 to 1.1 m ahead at 0.75 m, a
+//!     textured wall), drawn with the person's hand and forearm when `held`; no ball before the
+//!     first message nor while `present = false`.
+//!   - Stamps: the bus clock when the frame is rendered; with `--camera-from-joints`, the stamp
+//!     of the joint state the pose came from while joint states keep coming (so the DR's
+//!     transform at the frame's stamp is the pose it was rendered from; see [`frame_stamp_ns`]).
 //! - `playback`: a TUM RGB-D folder (`--sequence DIR`), paced by the recorded timestamps divided
 //!   by `--rate` (2 = twice as fast; 0 = as fast as the subscribers take them), once or with
 //!   `--loop` forever. Frames keep their recorded stamps (so a track can be compared with a
@@ -23,9 +43,13 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use interfaces::msg::tracking::BallTruth;
+use deep_representation::kinematics::RobotModel;
+use deep_representation::service::find_model;
+use interfaces::msg::body::JointStates;
+use interfaces::msg::tracking::{BallTruth, SimBall};
 use interfaces::msg::vision::RgbdFrame;
 use interfaces::node::Interface;
+use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Header, Shutdown, topics};
 
 use crate::RgbdDriver;
@@ -33,6 +57,7 @@ use crate::convert::{into_msg, seconds_to_ns};
 use crate::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
 use crate::scenario::{BallGroundTruth, CameraPose, Scenario, ScenarioSim};
 use crate::sim::SensorModel;
+use crate::world::{HeadCamera, RobotPose, WorldSim, frame_stamp_ns, joint_state_fresh};
 
 /// Which driver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -59,6 +84,22 @@ pub struct Config {
     /// positive pitch looks down).
     #[arg(long, value_parser = CameraPose::parse, default_value = "0,0,1.5,0,30,0")]
     pub camera_pose: CameraPose,
+    /// sim: compute the camera pose from `body/joint_states` through the URDF (the optical
+    /// frame `--frame-id`), instead of `--camera-pose`.
+    #[arg(long)]
+    pub camera_from_joints: bool,
+    /// sim with --camera-from-joints: the robot's `base_footprint` in the world, `x,y,yaw` (m,
+    /// degrees).
+    #[arg(long, value_parser = RobotPose::parse, default_value = "0,0,0")]
+    pub robot_pose: RobotPose,
+    /// sim with --camera-from-joints: the robot's URDF (default: models/loki.urdf found above
+    /// the binary or the working folder, as the deep representation finds it).
+    #[arg(long, env = "ROBOCOG_URDF")]
+    pub urdf: Option<PathBuf>,
+    /// sim: draw the simulated world's ball from `sim/ball` over the game's scene, instead of
+    /// `--scenario`.
+    #[arg(long)]
+    pub ball_from_topic: bool,
     /// sim: frames per second.
     #[arg(long, default_value_t = 30.0)]
     pub fps: f64,
@@ -90,8 +131,49 @@ pub struct Config {
 pub fn interface(config: &Config) -> Interface {
     let i = Interface::new("rgbd").publishes(&topics::VISION_RGBD);
     match config.driver {
-        DriverKind::Sim => i.publishes(&topics::SIM_BALL_TRUTH),
+        DriverKind::Sim => {
+            let mut i = i.publishes(&topics::SIM_BALL_TRUTH);
+            if config.camera_from_joints {
+                i = i.subscribes(&topics::BODY_JOINT_STATES);
+            }
+            if config.ball_from_topic {
+                i = i.subscribes(&topics::SIM_BALL);
+            }
+            i
+        }
         DriverKind::Playback => i,
+    }
+}
+
+/// The simulated world a sim frame is rendered from.
+#[derive(Debug)]
+pub enum SimWorld {
+    /// The lab scene with the ball moved by a scenario.
+    Scenario(Box<ScenarioSim>),
+    /// The game's scene with the ball from `sim/ball`.
+    Topic(Box<WorldSim>),
+}
+
+impl SimWorld {
+    fn set_world_from_optical(&mut self, pose: nalgebra::Isometry3<f64>) {
+        match self {
+            SimWorld::Scenario(s) => s.set_world_from_optical(pose),
+            SimWorld::Topic(s) => s.set_world_from_optical(pose),
+        }
+    }
+
+    fn truth(&self) -> Option<BallGroundTruth> {
+        match self {
+            SimWorld::Scenario(s) => s.truth(),
+            SimWorld::Topic(s) => s.truth(),
+        }
+    }
+
+    fn next_frame(&mut self, now_s: f64) -> Result<Option<crate::Frame>, crate::DriverError> {
+        match self {
+            SimWorld::Scenario(s) => s.next_frame(now_s),
+            SimWorld::Topic(s) => s.next_frame(now_s),
+        }
     }
 }
 
@@ -100,8 +182,10 @@ pub fn interface(config: &Config) -> Interface {
 pub enum Source {
     /// The simulated scene, paced at a fixed period.
     Sim {
-        /// The scenario driver.
-        sim: Box<ScenarioSim>,
+        /// The scene and ball.
+        world: SimWorld,
+        /// The camera pose from joint states, with `--camera-from-joints`.
+        head: Option<HeadCamera>,
         /// Frame period, s.
         period_s: f64,
     },
@@ -132,17 +216,60 @@ impl Source {
                 } else {
                     SensorModel::default()
                 };
+                let head = if config.camera_from_joints {
+                    let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
+                    let model = RobotModel::from_urdf_file(&urdf).with_context(|| {
+                        format!("cannot load the robot model {}", urdf.display())
+                    })?;
+                    let head = HeadCamera::new(
+                        &model,
+                        &config.frame_id,
+                        config.robot_pose.world_from_base(),
+                    )
+                    .with_context(|| format!("in {}", urdf.display()))?;
+                    let p = head.world_from_optical().translation.vector;
+                    tracing::info!(
+                        "the camera follows body/joint_states through {} (chain {}); no joint \
+                         state yet: rendering from the rest posture, camera at ({:.3}, {:.3}, \
+                         {:.3}) m in the world",
+                        urdf.display(),
+                        head.joint_names().join(", "),
+                        p.x,
+                        p.y,
+                        p.z
+                    );
+                    Some(head)
+                } else {
+                    None
+                };
+                let world = if config.ball_from_topic {
+                    let pose = head
+                        .as_ref()
+                        .map(HeadCamera::world_from_optical)
+                        .unwrap_or_else(|| config.camera_pose.world_from_optical());
+                    tracing::info!(
+                        "the game's scene; the ball comes from sim/ball (none drawn until then)"
+                    );
+                    SimWorld::Topic(Box::new(WorldSim::new(pose, sensor, config.seed)))
+                } else {
+                    let mut sim =
+                        ScenarioSim::new(config.scenario, config.camera_pose, sensor, config.seed);
+                    if let Some(h) = &head {
+                        sim.set_world_from_optical(h.world_from_optical());
+                    }
+                    SimWorld::Scenario(Box::new(sim))
+                };
                 Ok(Source::Sim {
-                    sim: Box::new(ScenarioSim::new(
-                        config.scenario,
-                        config.camera_pose,
-                        sensor,
-                        config.seed,
-                    )),
+                    world,
+                    head,
                     period_s: 1.0 / config.fps,
                 })
             }
             DriverKind::Playback => {
+                anyhow::ensure!(
+                    !config.camera_from_joints && !config.ball_from_topic,
+                    "--camera-from-joints and --ball-from-topic need --driver sim"
+                );
                 let dir = config
                     .sequence
                     .as_ref()
@@ -186,6 +313,62 @@ impl Source {
     }
 }
 
+/// The sim's inputs from the bus and what to say about them.
+struct SimInputs {
+    joints: Option<interfaces::Subscriber<JointStates>>,
+    balls: Option<interfaces::Subscriber<SimBall>>,
+    first_joint_state: bool,
+    missing_reported: bool,
+    warn_limit: RateLimiter,
+}
+
+impl SimInputs {
+    /// Applies the newest joint state (if any since the last call) to `head`; its stamp.
+    fn update_head(&mut self, bus: &Bus, head: &mut HeadCamera) -> Option<i64> {
+        let states = self.joints.as_ref()?.latest()?;
+        let report = head.apply(&states);
+        if self.first_joint_state {
+            self.first_joint_state = false;
+            let p = head.world_from_optical().translation.vector;
+            tracing::info!(
+                "first joint state (driver {:?}): the camera now follows body/joint_states, at \
+                 ({:.3}, {:.3}, {:.3}) m in the world",
+                states.driver,
+                p.x,
+                p.y,
+                p.z
+            );
+        }
+        if !report.missing.is_empty() && !self.missing_reported {
+            self.missing_reported = true;
+            tracing::warn!(
+                "body/joint_states does not name {}: they stay at their previous value (the rest \
+                 posture until named)",
+                report.missing.join(", ")
+            );
+        }
+        let counters = bus.counters();
+        if !report.non_finite.is_empty() || !report.clamped.is_empty() {
+            if !report.non_finite.is_empty() {
+                counters.incr("joint_states_non_finite");
+            }
+            if !report.clamped.is_empty() {
+                counters.incr("joint_states_clamped");
+            }
+            if let Some(suppressed) = self.warn_limit.allow(std::time::Instant::now()) {
+                tracing::warn!(
+                    suppressed,
+                    "joint state seq {}: ignored non-finite {:?}, clamped into the URDF limits {:?}",
+                    states.header.seq,
+                    report.non_finite,
+                    report.clamped
+                );
+            }
+        }
+        Some(states.header.stamp_ns)
+    }
+}
+
 fn truth_msg(t: &BallGroundTruth, frame: &RgbdFrame) -> BallTruth {
     BallTruth {
         header: Header {
@@ -200,6 +383,9 @@ fn truth_msg(t: &BallGroundTruth, frame: &RgbdFrame) -> BallTruth {
         in_view: t.in_view,
     }
 }
+
+/// Queue depth of the sim's inputs: joint states at 100 Hz or more are drained every frame.
+const INPUT_QUEUE: usize = 64;
 
 async fn wait_for_subscriber(bus: &Bus, wait_s: f64, shutdown: &mut Shutdown) {
     if wait_s <= 0.0 {
@@ -240,7 +426,36 @@ pub async fn run(
     let clock = bus.clock().clone();
     let now_s = move || clock.now_ns() as f64 * 1e-9;
     match source {
-        Source::Sim { mut sim, period_s } => {
+        Source::Sim {
+            mut world,
+            mut head,
+            period_s,
+        } => {
+            let mut inputs = SimInputs {
+                joints: match head {
+                    Some(_) => Some(
+                        bus.subscriber_named::<JointStates>(
+                            topics::BODY_JOINT_STATES.name(),
+                            INPUT_QUEUE,
+                        )
+                        .await?,
+                    ),
+                    None => None,
+                },
+                balls: if config.ball_from_topic {
+                    Some(
+                        bus.subscriber_named::<SimBall>(topics::SIM_BALL.name(), INPUT_QUEUE)
+                            .await?,
+                    )
+                } else {
+                    None
+                },
+                first_joint_state: true,
+                missing_reported: false,
+                warn_limit: RateLimiter::new(Duration::from_secs(1)),
+            };
+            let mut last_ns = 0i64;
+            let mut joint_stamp: Option<i64> = None;
             let mut tick = tokio::time::interval(Duration::from_secs_f64(period_s));
             tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
             loop {
@@ -249,12 +464,40 @@ pub async fn run(
                     _ = shutdown.wait() => return Ok(()),
                     _ = tick.tick() => {}
                 }
-                let Some(frame) = sim.next_frame(now_s())? else {
+                if let Some(h) = head.as_mut() {
+                    if let Some(t) = inputs.update_head(&bus, h) {
+                        joint_stamp = Some(t);
+                    }
+                    world.set_world_from_optical(h.world_from_optical());
+                }
+                if let (Some(sub), SimWorld::Topic(w)) = (&inputs.balls, &mut world)
+                    && let Some(ball) = sub.latest()
+                {
+                    w.set_ball(ball);
+                }
+                let now_ns = bus.clock().now_ns();
+                if let Some(t) = joint_stamp
+                    && !joint_state_fresh(now_ns, t)
+                {
+                    bus.counters().incr("joint_states_stale_frames");
+                    if let Some(suppressed) = inputs.warn_limit.allow(std::time::Instant::now()) {
+                        tracing::warn!(
+                            suppressed,
+                            "the newest joint state is {:.2} s old (stalled publisher, or another \
+                             clock): frames are stamped with the bus clock, the camera pose held",
+                            (now_ns - t) as f64 * 1e-9
+                        );
+                    }
+                }
+                let stamp_ns = frame_stamp_ns(now_ns, joint_stamp, last_ns);
+                last_ns = stamp_ns;
+                let Some(frame) = world.next_frame(stamp_ns as f64 * 1e-9)? else {
                     return Ok(());
                 };
                 let mut msg = into_msg(frame, &config.frame_id);
+                msg.header.stamp_ns = stamp_ns;
                 frames.publish(&mut msg).await?;
-                if let (Some(p), Some(t)) = (&truths, sim.truth()) {
+                if let (Some(p), Some(t)) = (&truths, world.truth()) {
                     p.publish(&mut truth_msg(&t, &msg)).await?;
                 }
             }

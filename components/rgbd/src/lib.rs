@@ -10,7 +10,9 @@
 //! - Time is always passed in; nothing here reads the wall clock.
 //! - The component ([`component`], the `rgbd` binary) wraps a driver and publishes its frames on
 //!   `vision/rgbd` ([`convert`] maps [`Frame`] to the bus message); its sim driver moves the ball
-//!   by a scripted [`scenario`] and publishes the ground truth on `sim/ball_truth`.
+//!   by a scripted [`scenario`], or takes it from the simulated world (`sim/ball`) over the
+//!   game's scene, with the camera fixed or placed by the robot's joint states through the URDF
+//!   ([`world`]), and publishes the ground truth on `sim/ball_truth`.
 
 pub mod component;
 pub mod convert;
@@ -18,6 +20,7 @@ pub mod playback;
 pub mod scenario;
 pub mod sim;
 pub mod types;
+pub mod world;
 
 pub use types::{Frame, FrameError, Intrinsics};
 

@@ -193,6 +193,12 @@ impl ScenarioSim {
         self.driver.renderer.camera.world_from_camera = pose.world_from_optical();
     }
 
+    /// Moves the camera to `world_from_optical` (optical frame: z forward, x right, y down), as
+    /// computed from the robot's joints.
+    pub fn set_world_from_optical(&mut self, pose: Isometry3<f64>) {
+        self.driver.renderer.camera.world_from_camera = pose;
+    }
+
     /// The camera (pose, intrinsics, size).
     pub fn camera(&self) -> &SimCamera {
         &self.driver.renderer.camera
@@ -204,26 +210,30 @@ impl ScenarioSim {
     }
 
     fn truth_for(&self, centre_w: &Point3<f64>) -> BallGroundTruth {
-        let cam = self.camera();
-        let c = cam.world_from_camera.inverse_transform_point(centre_w);
-        let r = self.ball_diameter_m / 2.0;
-        let in_view = cam
-            .intrinsics
-            .project([c.x, c.y, c.z])
-            .is_some_and(|[u, v]| {
-                let r_px = cam.intrinsics.fx * r / (c.z - r).max(1e-6);
-                c.z > r
-                    && u - r_px >= 0.0
-                    && v - r_px >= 0.0
-                    && u + r_px <= f64::from(cam.width) - 1.0
-                    && v + r_px <= f64::from(cam.height) - 1.0
-            });
-        BallGroundTruth {
-            centre_camera_m: [c.x, c.y, c.z],
-            centre_world_m: [centre_w.x, centre_w.y, centre_w.z],
-            diameter_m: self.ball_diameter_m,
-            in_view,
-        }
+        ball_truth(self.camera(), centre_w, self.ball_diameter_m)
+    }
+}
+
+/// The ground truth of a ball of `diameter_m` centred at `centre_w` (world) seen by `cam`.
+pub fn ball_truth(cam: &SimCamera, centre_w: &Point3<f64>, diameter_m: f64) -> BallGroundTruth {
+    let c = cam.world_from_camera.inverse_transform_point(centre_w);
+    let r = diameter_m / 2.0;
+    let in_view = cam
+        .intrinsics
+        .project([c.x, c.y, c.z])
+        .is_some_and(|[u, v]| {
+            let r_px = cam.intrinsics.fx * r / (c.z - r).max(1e-6);
+            c.z > r
+                && u - r_px >= 0.0
+                && v - r_px >= 0.0
+                && u + r_px <= f64::from(cam.width) - 1.0
+                && v + r_px <= f64::from(cam.height) - 1.0
+        });
+    BallGroundTruth {
+        centre_camera_m: [c.x, c.y, c.z],
+        centre_world_m: [centre_w.x, centre_w.y, centre_w.z],
+        diameter_m,
+        in_view,
     }
 }
 

@@ -109,6 +109,22 @@ impl Default for Scene {
     }
 }
 
+impl Scene {
+    /// Loki's "touch the ball" scene, the robot's `base_footprint` at the world origin facing
+    /// +x: a 0.7 m (x) x 1.2 m (y) table top at 0.75 m height from 0.4 m to 1.1 m ahead (within
+    /// the arms' reach), and the textured wall 3 m ahead. No ball: the world puts it in.
+    pub fn game() -> Scene {
+        Scene {
+            table: Some(Table {
+                centre_w: Point3::new(0.75, 0.0, 0.75),
+                size_x_m: 0.7,
+                size_y_m: 1.2,
+            }),
+            ..Scene::default()
+        }
+    }
+}
+
 /// Sensor imperfections.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorModel {
