@@ -560,6 +560,15 @@ async fn run_touch(
                     }).await?;
                     let mut target = ball_target(&settings.touch);
                     out.target.publish(&mut target).await?;
+                    if game.machine().is_active(touch::state::TRACKING) {
+                        // It forgot the ball it was tracking: lost, said so, searched again.
+                        let lost = BallEvent {
+                            kind: BallEventKind::Lost,
+                            ..BallEvent::default()
+                        };
+                        let o = game.ball_event(&lost, bus_now(&bus));
+                        out.emit(o).await?;
+                    }
                 }
                 game.ball_track(&t, bus_now(&bus))
             }

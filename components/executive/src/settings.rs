@@ -8,7 +8,7 @@
 //! [touch]
 //! arm = "left_arm_7"
 //! courtesy_delay_s = 5.0
-//! ball_hue_deg = 52.0
+//! ball_hue_deg = 51.7
 //! arm_rest = [{ joint = "left_elbow", position = -0.2 }]
 //!
 //! [propose]
@@ -178,7 +178,7 @@ impl Default for TouchSettings {
             arm: "left_arm_7".into(),
             neck: "neck".into(),
             client: "executive".into(),
-            ball_hue_deg: 52.0,
+            ball_hue_deg: 51.7,
             ball_saturation: 0.85,
             ball_diameter_m: 0.07,
             touch_offset_m: [-0.03, 0.0, 0.0],

@@ -119,7 +119,7 @@ impl Default for BallSpec {
             diameter_m: 0.07,
             hue_deg: 52.0,
             saturation: 0.85,
-            start: [0.45, 0.20, 1.30],
+            start: [0.45, 0.30, 1.20],
             present: true,
             held: false,
         }

@@ -149,7 +149,7 @@ fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
     assert!(target.active);
     assert_eq!(
         (target.hue_deg, target.saturation, target.diameter_m),
-        (52.0, 0.85, 0.07)
+        (51.7, 0.85, 0.07)
     );
     assert_eq!(o.said(), [say::LOOKING]);
     let r = reaches(&o);
