@@ -182,9 +182,15 @@ async fn touch_a_still_ball() {
     let game = play("still", &[], Duration::from_secs(180)).await;
     check_ok(&game);
     game.entered_in_order(&[
-        "playing", "searching", "tracking", "reaching", "touching", "homing", "finished",
+        "playing",
+        "searching",
+        "tracking",
+        "reaching",
+        "touching",
+        "homing",
+        "finished",
     ])
-        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
     assert!(game.said_any("hello"), "{:?}", game.said);
     assert!(game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
     let (hand, ball) = *game.touches.first().expect("a touch measured");
@@ -257,5 +263,26 @@ async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
     );
     assert!(game.said_any("lost the ball"), "{:?}", game.said);
     game.entered_in_order(&["tracking", "searching", "tracking", "reaching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_low_confidence_command_is_confirmed_by_yes() {
+    // The person speaks in a noisy room (6 dB SNR): the recognizer is unsure, the dialog asks
+    // "Did you say ...?", she says yes, and the command is carried out.
+    let game = play("confirm_yes", &[], Duration::from_secs(180)).await;
+    check_ok(&game);
+    let asked = game
+        .said
+        .iter()
+        .position(|s| s.contains("did you say"))
+        .unwrap_or_else(|| panic!("the robot never asked: {:?}", game.said));
+    let looked = game
+        .said
+        .iter()
+        .rposition(|s| s.contains("looking for the ball"))
+        .unwrap_or_else(|| panic!("the command was not carried out: {:?}", game.said));
+    assert!(asked < looked, "{:?}", game.said);
+    game.entered_in_order(&["searching", "tracking", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
 }
