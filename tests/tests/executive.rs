@@ -188,7 +188,7 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
     })
     .await;
 
-    // Scan: the target for the tracker, then the neck searches the table.
+    // Scan: the target for the tracker, then the neck searches where a person shows a ball.
     commands
         .publish(&mut command(Command::ScanBall))
         .await
@@ -197,7 +197,7 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
     assert!(target.active);
     assert_eq!(
         (target.hue_deg, target.saturation, target.diameter_m),
-        (52.0, 0.85, 0.07)
+        (51.7, 0.85, 0.07)
     );
     let first: ReachGoal = next(&reaches, &launch, "a scan gaze", WAIT, |_| true).await;
     assert_eq!(
