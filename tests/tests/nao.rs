@@ -162,3 +162,87 @@ async fn commands_reach_the_simulated_robot_and_its_world_comes_back() {
         }
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_bridge_mirrors_the_team_model_and_the_game_state_into_the_dr() {
+    use interfaces::msg::dr::{AttrValue, GetNodeRequest};
+    let ns = unique_namespace("nao-dr");
+    let dir = scratch(&ns);
+    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let manifest = dir.join("nao_dr.toml");
+    std::fs::write(
+        &manifest,
+        format!(
+            r#"
+[[component]]
+name = "deep_representation"
+binary = "{dr}"
+args = ["--scene", "coach"]
+
+[[component]]
+name = "spl_field"
+binary = "{field}"
+args = ["--controlled", "127.0.0.2", "--teammate", "127.0.0.3", "--debug-port", "{debug}",
+        "--gamecontroller-port", "{gc}", "--command-port", "{cmd}", "--pre-game-s", "1"]
+
+[[component]]
+name = "nao_bridge"
+binary = "{bridge}"
+args = ["--robot", "127.0.0.2", "--teammate", "127.0.0.3", "--debug-port", "{debug}",
+        "--gamecontroller-port", "{gc}", "--command-port", "{cmd}", "--dr-updates"]
+depends_on = ["deep_representation"]
+external_inputs = ["nao/command"]
+"#,
+            dr = bin("deep_representation").display(),
+            field = bin("spl_field").display(),
+            bridge = bin("nao_bridge").display(),
+        ),
+    )
+    .unwrap();
+    let launch = Launch::start(&manifest, &ns, &[]);
+    launch
+        .lines
+        .wait_for("bridge up", Duration::from_secs(30), |l| {
+            l.contains("nao_bridge is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-nao-dr")
+        .await
+        .unwrap();
+    let truth = bus.subscriber(&topics::SIM_FIELD_TRUTH).await.unwrap();
+    let node = |name: &str| GetNodeRequest {
+        name: name.into(),
+        ..Default::default()
+    };
+    // The controlled robot's node follows the simulated robot (through its debug packets, the
+    // fusion and the mirror), and the field carries the game state.
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the DR never matched the field; output:\n{}",
+            launch.lines.all().join("\n")
+        );
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let Some(t) = truth.latest() else { continue };
+        let (Ok(robot), Ok(field)) = (
+            bus.call(&topics::DR_GET_NODE, &node("nao_2"), Duration::from_secs(1))
+                .await,
+            bus.call(&topics::DR_GET_NODE, &node("field"), Duration::from_secs(1))
+                .await,
+        ) else {
+            continue;
+        };
+        let [x, y, _] = robot.pose.translation_m;
+        let off_m = ((x - t.controlled.x_mm as f64 / 1000.0).powi(2)
+            + (y - t.controlled.y_mm as f64 / 1000.0).powi(2))
+        .sqrt();
+        let state = field
+            .attributes
+            .iter()
+            .find(|a| a.key == "game_state")
+            .map(|a| a.value.clone());
+        if off_m < 0.3 && matches!(state, Some(AttrValue::Text(_))) {
+            break;
+        }
+    }
+}

@@ -82,6 +82,7 @@ async fn main() -> anyhow::Result<()> {
         gamecontroller_port: gc_port,
         team_number: 19,
         link_timeout_s: 5.0,
+        dr_updates: false,
     };
     let bridge_bus = Bus::open(&args, "nao_bridge").await?;
     let (stop, shutdown) = interfaces::Shutdown::new();

@@ -6,6 +6,9 @@
 //! - Debug packets from the configured robot addresses are decoded and published on
 //!   `nao/local_model`, fused into `nao/world_model`; GameController packets become
 //!   `nao/game_state`; link changes ("robot not responding") go on `nao/link`.
+//! - With `dr_updates`, the team model and the game state are mirrored into the DR's coach scene
+//!   (see [`crate::dr`]) at most every 200 ms, one `dr/update` in flight; failures are counted
+//!   (`dr/update_failed`) and logged at most once every 5 s.
 //! - Every dropped datagram is counted per kind and reason (`drop/<kind>/<reason>` on the
 //!   component's `diagnostics`) and logged at most once a second per reason.
 
@@ -14,6 +17,7 @@ use crate::{
     ExpectedRobot, FusionConfig, Inbound, InboundConfig, PacketKind, WorldModelFusion,
     encode_command,
 };
+use interfaces::msg::nao::{GameState, NaoWorldModel};
 use interfaces::{Bus, Shutdown, topics};
 use std::net::{IpAddr, SocketAddr};
 use std::time::{Duration, Instant};
@@ -34,6 +38,42 @@ pub struct Config {
     pub gamecontroller_port: u16,
     pub team_number: u8,
     pub link_timeout_s: f64,
+    /// Mirror the team model and the game state into the DR (`dr/update`).
+    pub dr_updates: bool,
+}
+
+type Latest = (Option<NaoWorldModel>, Option<GameState>);
+
+/// Sends the latest team model and game state to the DR, at most every [`crate::dr::MIRROR_PERIOD`].
+async fn mirror_to_dr(bus: Bus, mut latest: tokio::sync::watch::Receiver<Latest>) {
+    let failed = bus.counters().counter("dr/update_failed");
+    let sent = bus.counters().counter("dr/updates_sent");
+    let mut last_warning: Option<Instant> = None;
+    while latest.changed().await.is_ok() {
+        let req = {
+            let v = latest.borrow_and_update();
+            match &v.0 {
+                Some(w) => crate::dr::update_request(w, v.1.as_ref()),
+                None => crate::dr::update_request(&NaoWorldModel::default(), v.1.as_ref()),
+            }
+        };
+        match bus
+            .call(&topics::DR_UPDATE, &req, Duration::from_millis(500))
+            .await
+        {
+            Ok(_) => {
+                sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+            Err(e) => {
+                let n = failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                if last_warning.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
+                    last_warning = Some(Instant::now());
+                    tracing::warn!("cannot update the DR ({n} failed so far): {e}");
+                }
+            }
+        }
+        tokio::time::sleep(crate::dr::MIRROR_PERIOD).await;
+    }
 }
 
 /// Run the bridge until shutdown.
@@ -96,6 +136,11 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let link_pub = bus.publisher(&topics::NAO_LINK).await?;
     let commands = bus.subscriber(&topics::NAO_COMMAND).await?;
     let counters = bus.counters().clone();
+    let (latest_tx, latest_rx) = tokio::sync::watch::channel::<Latest>((None, None));
+    if config.dr_updates {
+        tokio::spawn(mirror_to_dr(bus.clone(), latest_rx));
+        tracing::info!("mirroring the team model and the game state into the DR");
+    }
     tracing::info!(
         "bridge: commands to {robot}, debug packets on {}:{}, GameController on {}:{}",
         config.listen,
@@ -138,6 +183,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                     fusion.ingest(&model, t);
                     let mut w = convert::world_model_to_bus(&fusion.snapshot(t));
                     world_pub.publish(&mut w).await?;
+                    latest_tx.send_modify(|l| l.0 = Some(w));
                     if let Some((player, e)) = event {
                         let mut l = convert::link_event_to_bus(player, &e, t);
                         link_pub.publish(&mut l).await?;
@@ -149,6 +195,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 if let Some(state) = inbound.on_gamecontroller(&gc_buf[..n], from, now_s()) {
                     let mut g = convert::game_state_to_bus(&state, config.team_number);
                     game_pub.publish(&mut g).await?;
+                    latest_tx.send_modify(|l| l.1 = Some(g));
                 }
             }
             _ = tick.tick() => {

@@ -55,6 +55,7 @@ pub mod bus;
 pub mod command;
 pub mod component;
 pub mod debug;
+pub mod dr;
 pub mod gamecontroller;
 pub mod inbound;
 pub mod link;

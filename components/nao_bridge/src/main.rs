@@ -36,21 +36,29 @@ struct Args {
     /// No packet from a robot for this long: "robot not responding" (s).
     #[arg(long, default_value_t = 1.0)]
     link_timeout_s: f64,
+    /// Mirror the team model (our robots, the ball) and the game state into the deep
+    /// representation's coach scene with `dr/update` (needs `deep_representation --scene coach`).
+    #[arg(long)]
+    dr_updates: bool,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    let mut base = Interface::new("nao_bridge")
+        .subscribes(&topics::NAO_COMMAND)
+        .publishes(&topics::NAO_LOCAL_MODEL)
+        .publishes(&topics::NAO_WORLD_MODEL)
+        .publishes(&topics::NAO_GAME_STATE)
+        .publishes(&topics::NAO_LINK);
+    if args.dr_updates {
+        base = base.calls(&topics::DR_UPDATE);
+    }
     let interface = Interface {
         hardware: vec![
             format!("udp:{}", args.debug_port),
             format!("udp:{}", args.gamecontroller_port),
         ],
-        ..Interface::new("nao_bridge")
-            .subscribes(&topics::NAO_COMMAND)
-            .publishes(&topics::NAO_LOCAL_MODEL)
-            .publishes(&topics::NAO_WORLD_MODEL)
-            .publishes(&topics::NAO_GAME_STATE)
-            .publishes(&topics::NAO_LINK)
+        ..base
     };
     let config = Config {
         controlled: args.robot,
@@ -61,6 +69,7 @@ fn main() -> ExitCode {
         gamecontroller_port: args.gamecontroller_port,
         team_number: args.team_number,
         link_timeout_s: args.link_timeout_s,
+        dr_updates: args.dr_updates,
     };
     node::run(args.node, interface, |bus, shutdown| {
         run(bus, config, shutdown)
