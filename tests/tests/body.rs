@@ -446,10 +446,19 @@ async fn joint_goals_beyond_a_limit_or_on_owned_joints_are_refused_by_name() {
         }],
         ..Default::default()
     };
+    // The DR applies the newest joint state at most every 20 ms and joint_motor publishes every
+    // 10 ms: the stray message goes out every 2 ms so that it is the newest one now and then.
+    let stray_task = tokio::spawn(async move {
+        loop {
+            if stray.publish(&mut stray_msg).await.is_err() {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+    });
     let (mut dr_unknown, mut refused_upper) = (0, 0);
     let deadline = Instant::now() + Duration::from_secs(10);
     while dr_unknown == 0 || refused_upper == 0 {
-        stray.publish(&mut stray_msg).await.unwrap();
         tokio::select! {
             d = diagnostics.recv() => {
                 let d = d.unwrap();
@@ -464,6 +473,7 @@ async fn joint_goals_beyond_a_limit_or_on_owned_joints_are_refused_by_name() {
             ),
         }
     }
+    stray_task.abort();
     assert_eq!(refused_upper, 1);
 }
 
