@@ -4,9 +4,7 @@
 # Prints a table; the very last line is one JSON object with the figures and speed-up ratios.
 # Env: IK_N (targets, default 10000), IK_N_IKPY (default 500: ikpy is slow), IK_N_RTB (default 10000).
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-/tmp/target-ik}"
-export CARGO_BUILD_JOBS="${CARGO_BUILD_JOBS:-1}"
+source "$(dirname "$0")/../lib.sh"
 N="${IK_N:-10000}"
 OUT="$CARGO_TARGET_DIR/ik-bench"
 mkdir -p "$OUT"
