@@ -302,6 +302,24 @@ async fn a_scripted_attempt_with_voice_and_bus_commands() {
         s.text == "We are playing. Asking my teammate for the ball."
     })
     .await;
+    // The machine's live configuration can be queried.
+    let config = bus
+        .call(
+            &topics::EXECUTIVE_CONFIGURATION,
+            &interfaces::msg::executive::ConfigurationRequest::default(),
+            Duration::from_secs(2),
+        )
+        .await
+        .unwrap();
+    assert_eq!(config.machine, "coach");
+    assert!(
+        config.active.iter().any(|a| a == "coach/playing"),
+        "{config:?}"
+    );
+    assert!(
+        config.step > 1 && config.mermaid.contains("stateDiagram"),
+        "{config:?}"
+    );
     truth
         .wait_from("AskForTheBall at the robot", 0, t, |f| {
             f.last_command.first() == Some(&7.0)

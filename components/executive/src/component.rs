@@ -264,14 +264,27 @@ pub async fn run(
     match config.game {
         GameKind::Touch => run_touch(bus, config, settings, shutdown).await,
         GameKind::Coach => {
+            let mermaid = crate::coach::machine::definition(&settings.coach)?.mermaid();
             let snapshot = Arc::new(Mutex::new(Snapshot {
                 machine: crate::coach::MACHINE.into(),
-                mermaid: crate::coach::machine::definition(&settings.coach)?.mermaid(),
+                mermaid: mermaid.clone(),
                 game_on: true,
                 ..Default::default()
             }));
-            let _services = serve(&bus, snapshot, settings.propose.clone()).await?;
-            crate::coach::run(bus, settings.coach, shutdown).await
+            let _services = serve(&bus, snapshot.clone(), settings.propose.clone()).await?;
+            // The live configuration after every input the machine handled.
+            crate::coach::run_observed(bus, settings.coach, shutdown, move |game| {
+                let m = game.machine();
+                *lock(&snapshot) = Snapshot {
+                    machine: crate::coach::MACHINE.into(),
+                    active: m.active_leaves(),
+                    all_active: m.configuration(),
+                    step: m.steps(),
+                    mermaid: mermaid.clone(),
+                    game_on: !m.is_finished(),
+                };
+            })
+            .await
         }
     }
 }
