@@ -289,6 +289,19 @@ pub async fn run(
     }
 }
 
+/// One step of a machine as the `executive/transitions` message (both games publish the same).
+pub(crate) fn transition_msg<A>(machine: &str, s: &Step<A>) -> StateTransition {
+    StateTransition {
+        machine: machine.into(),
+        event: s.event.clone(),
+        exited: s.exited.clone(),
+        entered: s.entered.clone(),
+        active: s.active.clone(),
+        step: s.step,
+        ..Default::default()
+    }
+}
+
 /// The bus clock as the machine's time.
 fn bus_now(bus: &Bus) -> Duration {
     Duration::from_nanos(u64::try_from(bus.clock().now_ns()).unwrap_or(0))
@@ -447,16 +460,9 @@ impl TouchOut {
             tracing::debug!("{} ignored in {:?}", s.event, s.active);
             return Ok(());
         }
-        let mut t = StateTransition {
-            machine: touch::MACHINE.into(),
-            event: s.event.clone(),
-            exited: s.exited.clone(),
-            entered: s.entered.clone(),
-            active: s.active.clone(),
-            step: s.step,
-            ..Default::default()
-        };
-        self.transitions.publish(&mut t).await?;
+        self.transitions
+            .publish(&mut transition_msg(touch::MACHINE, s))
+            .await?;
         Ok(())
     }
 

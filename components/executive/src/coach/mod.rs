@@ -134,16 +134,9 @@ impl Publishers {
     /// `speech/say` before its command is on `nao/command`).
     async fn emit(&mut self, o: Outcome) -> anyhow::Result<()> {
         for s in o.steps.iter().filter(|s| !s.ignored) {
-            let mut t = StateTransition {
-                machine: MACHINE.into(),
-                event: s.event.clone(),
-                exited: s.exited.clone(),
-                entered: s.entered.clone(),
-                active: s.active.clone(),
-                step: s.step,
-                ..Default::default()
-            };
-            self.transitions.publish(&mut t).await?;
+            self.transitions
+                .publish(&mut crate::component::transition_msg(MACHINE, s))
+                .await?;
         }
         for output in o.outputs {
             match output {
