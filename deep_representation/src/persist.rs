@@ -374,7 +374,30 @@ mod tests {
     use crate::At;
     use crate::types::{AttrValue, NodeSpec, NodeType, Pose, Proposal, Stamp};
 
-    fn scratch(tag: &str) -> PathBuf {
+    /// A fresh folder (or file path) in the temp dir, removed when the test ends.
+    struct Scratch(PathBuf);
+
+    impl std::ops::Deref for Scratch {
+        type Target = Path;
+        fn deref(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl AsRef<Path> for Scratch {
+        fn as_ref(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl Drop for Scratch {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+
+    fn scratch(tag: &str) -> Scratch {
         let d = std::env::temp_dir().join(format!(
             "dr-persist-{tag}-{}-{}",
             std::process::id(),
@@ -384,7 +407,7 @@ mod tests {
                 .unwrap_or(0)
         ));
         let _ = std::fs::remove_dir_all(&d);
-        d
+        Scratch(d)
     }
 
     fn scene() -> crate::Result<SceneGraph> {

@@ -462,6 +462,7 @@ impl Ik {
         tracing::info!(
             part = %active.goal.body_part,
             id = active.goal.id,
+            client = %active.goal.client,
             kind = ?active.goal.kind,
             frame = %active.goal.frame,
             position = ?active.goal.position_m,

@@ -151,7 +151,9 @@ pub struct ReachGoal {
     pub header: Header,
     /// Caller-chosen id, echoed in every [`ReachStatus`] of this goal.
     pub id: u64,
-    /// Who asks (becomes the joint owner's client name with the part appended).
+    /// Who asks: logged with the goal. The joints are owned on `body/joint_goal` by the IK
+    /// process per body part (`<ik component>/<body_part>`, e.g.
+    /// `body_inverse_kinematics/left_arm_7`), whoever the client is.
     pub client: String,
     pub active: bool,
     /// Body part (`left_arm_7`, `neck`, ...).
