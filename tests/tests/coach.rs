@@ -179,10 +179,12 @@ async fn a_scripted_attempt_with_voice_and_bus_commands() {
         // 10 s of INITIAL, READY and SET each (5 s of real time each).
         "pre_game_s=30".into(),
         "falls_per_min=0".into(),
-        // The opponents stand still: the simulated defender stands 1.2 m in front of the ball
-        // and blocks nearly every shot, so a goal would be luck (with them playing, this script
-        // completes both passes, and the teammate's shot is blocked).
-        "passive_opponents=true".into(),
+        // The opponents stand still (obstacles only) unless ROBOCOG_COACH_OPPONENTS=active: with
+        // them playing, the defender often takes the ball, and the goal is not reliable.
+        format!(
+            "passive_opponents={}",
+            std::env::var("ROBOCOG_COACH_OPPONENTS").map_or(true, |v| v != "active")
+        ),
     ];
     let mut extra = Vec::new();
     for s in &sets {
@@ -522,5 +524,171 @@ async fn a_scripted_attempt_with_voice_and_bus_commands() {
         assert!(tr.iter().any(|s| s.event == ev), "no {ev} step: {tr:?}");
     }
     assert!(tr.iter().any(|s| s.active == ["coach/robot_down"]));
+    println!("said:\n  {}", said(&says).join("\n  "));
+}
+
+/// A lost link and a GameController penalty, on the same attempt (no voice; time 1:1):
+///
+/// 1. PLAYING: "go to the ball and dribble" from the bus reaches the robot.
+/// 2. The field stops (SIGSTOP: no packet from either robot, the field's time stands still):
+///    the bridge publishes "robot not responding", the machine goes to `coach/link_lost` and
+///    says so; the field continues (SIGCONT): the dribble is resumed, said and sent again.
+/// 3. The GameController penalises the controlled robot (scripted, 4 s into PLAYING, for 5 s):
+///    the machine says so, refuses a motion command with the reason (kept), and when the
+///    penalty is over does the kept command. (The teammate is knocked over meanwhile: alone
+///    against passive opponents it would score and end the attempt first.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_lost_link_and_a_penalty_interrupt_and_resume_the_command() {
+    use interfaces::msg::nao::{LinkChange, NaoLinkEvent};
+    let ns = unique_namespace("coach-interrupt");
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/nao_coach.toml");
+    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let sets = [
+        format!("debug_port={debug}"),
+        format!("gc_port={gc}"),
+        format!("command_port={cmd}"),
+        "panel=false".into(),
+        "pre_game_s=6".into(),
+        "falls_per_min=0".into(),
+        "passive_opponents=true".into(),
+        "penalty_at_s=4".into(),
+        "penalty_s=5".into(),
+    ];
+    let mut extra = Vec::new();
+    for s in &sets {
+        extra.push("--set");
+        extra.push(s.as_str());
+    }
+    let launch = Launch::start(&manifest, &ns, &extra);
+    for who in ["nao_bridge", "executive"] {
+        launch.lines.wait_for(who, Duration::from_secs(40), |l| {
+            l.contains(&format!("{who} is up"))
+        });
+    }
+    let bus = Bus::open(&launch.connect_args(), "test-coach-interrupt")
+        .await
+        .unwrap();
+    let truth = Log::<FieldTruth>::follow(&bus, &topics::SIM_FIELD_TRUTH).await;
+    let says = Log::<SayRequest>::follow(&bus, &topics::SPEECH_SAY).await;
+    let links = Log::<NaoLinkEvent>::follow(&bus, &topics::NAO_LINK).await;
+    let sent = Log::<NaoCommand>::follow(&bus, &topics::NAO_COMMAND).await;
+    let requests = bus.publisher(&topics::COACH_REQUEST).await.unwrap();
+    let field = eventually("field pid", Duration::from_secs(10), || {
+        component_pid(&launch, "spl_field")
+    });
+    let t = Duration::from_secs(15);
+    let request = |body: NaoBody| CoachRequest {
+        command: NaoCommand {
+            body,
+            source: "test".into(),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let active = || async {
+        bus.call(
+            &topics::EXECUTIVE_CONFIGURATION,
+            &interfaces::msg::executive::ConfigurationRequest::default(),
+            Duration::from_secs(2),
+        )
+        .await
+        .unwrap()
+        .active
+    };
+
+    // 1. PLAYING: the dribble reaches the robot.
+    truth
+        .wait_from("PLAYING", 0, Duration::from_secs(30), |f| f.game_state == 3)
+        .await;
+    let m = says.len();
+    requests
+        .publish(&mut request(NaoBody::GoToBallAndDribble))
+        .await
+        .unwrap();
+    says.wait_from("the dribble", m, t, |s| {
+        s.text == "Going to the ball to dribble."
+    })
+    .await;
+    truth
+        .wait_from("the dribble at the robot", 0, t, |f| {
+            f.controlled_body == "GoToBallAndDribble"
+        })
+        .await;
+
+    // 2. The link is lost, then back: the dribble is resumed.
+    let (m, l) = (says.len(), links.len());
+    let c = truth.last().unwrap().commands_received;
+    signal(field, "STOP");
+    let lost = links
+        .wait_from("robot 2 not responding", l, t, |e| {
+            e.player_number == 2 && e.change == LinkChange::RobotNotResponding
+        })
+        .await;
+    assert!(lost.silent_for_s >= 1.0, "{lost:?}");
+    says.wait_from("the lost link said", m, t, |s| {
+        s.text == "The robot is not responding."
+    })
+    .await;
+    let state = active().await;
+    assert!(state.iter().any(|a| a == "coach/link_lost"), "{state:?}");
+    let n = sent.len();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert_eq!(sent.len(), n, "sent to a robot that does not answer");
+    signal(field, "CONT");
+    links
+        .wait_from("robot 2 back", l, t, |e| {
+            e.player_number == 2 && e.change == LinkChange::Restored
+        })
+        .await;
+    says.wait_from("the link back and the resume said", m, t, |s| {
+        s.text == "The robot is responding again. Resuming. Going to the ball to dribble."
+    })
+    .await;
+    let resumed = truth
+        .wait_from("the dribble sent again", 0, t, |f| f.commands_received > c)
+        .await;
+    assert_eq!(resumed.controlled_body, "GoToBallAndDribble");
+    assert_eq!(resumed.last_command.first(), Some(&3.0));
+
+    // 3. The penalty: said; a motion command refused with the reason and kept; done after.
+    let m = says.len();
+    says.wait_from("the penalty said", m, t, |s| s.text == "I am penalised.")
+        .await;
+    // The teammate, striker while the controlled robot is out, must not end the attempt with
+    // a goal before the penalty is over: it falls (and is up after the penalty).
+    signal(field, "USR2");
+    let state = active().await;
+    assert!(state.iter().any(|a| a == "coach/penalised"), "{state:?}");
+    let c = truth.last().unwrap().commands_received;
+    let m = says.len();
+    requests
+        .publish(&mut request(NaoBody::SearchTheBall))
+        .await
+        .unwrap();
+    let refusal = says
+        .wait_from("the refusal", m, t, |s| s.text.contains("penalised"))
+        .await;
+    assert_eq!(
+        refusal.text,
+        "I cannot search for the ball now: I am penalised. I will do it when I am back."
+    );
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(
+        truth.last().unwrap().commands_received,
+        c,
+        "sent while penalised"
+    );
+    let over = says
+        .wait_from("the end of the penalty", m, t, |s| {
+            s.text.starts_with("My penalty is over.")
+        })
+        .await;
+    println!("after the penalty: {:?}", over.text);
+    truth
+        .wait_from("the kept command at the robot", 0, t, |f| {
+            f.commands_received > c && f.controlled_body == "SearchTheBall"
+        })
+        .await;
     println!("said:\n  {}", said(&says).join("\n  "));
 }

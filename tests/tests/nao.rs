@@ -165,7 +165,7 @@ async fn commands_reach_the_simulated_robot_and_its_world_comes_back() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_bridge_mirrors_the_team_model_and_the_game_state_into_the_dr() {
-    use interfaces::msg::dr::{AttrValue, GetNodeRequest};
+    use interfaces::msg::dr::{AttrValue, DrChange, GetNodeRequest};
     let ns = unique_namespace("nao-dr");
     let dir = scratch(&ns);
     let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
@@ -189,7 +189,8 @@ args = ["--controlled", "127.0.0.2", "--teammate", "127.0.0.3", "--debug-port", 
 name = "nao_bridge"
 binary = "{bridge}"
 args = ["--robot", "127.0.0.2", "--teammate", "127.0.0.3", "--debug-port", "{debug}",
-        "--gamecontroller-port", "{gc}", "--command-port", "{cmd}", "--dr-updates"]
+        "--gamecontroller-port", "{gc}", "--command-port", "{cmd}", "--dr-updates",
+        "--dr-propose-via", "dr"]
 depends_on = ["deep_representation"]
 external_inputs = ["nao/command"]
 "#,
@@ -209,6 +210,7 @@ external_inputs = ["nao/command"]
         .await
         .unwrap();
     let truth = bus.subscriber(&topics::SIM_FIELD_TRUTH).await.unwrap();
+    let changes = bus.subscriber(&topics::DR_CHANGES).await.unwrap();
     let node = |name: &str| GetNodeRequest {
         name: name.into(),
         ..Default::default()
@@ -245,4 +247,116 @@ external_inputs = ["nao/command"]
             break;
         }
     }
+
+    // The obstacles the robots see (the opponents, goalposts) become nodes of the field, with
+    // their type and last-seen time...
+    let obstacle_changes = |kind: &str, within: Duration| {
+        let deadline = tokio::time::Instant::now() + within;
+        let changes = &changes;
+        let kind = kind.to_string();
+        let lines = &launch.lines;
+        async move {
+            let mut names = std::collections::BTreeSet::new();
+            loop {
+                let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+                let c: DrChange = match tokio::time::timeout(left, changes.recv()).await {
+                    Ok(c) => c.unwrap(),
+                    Err(_) if !names.is_empty() => return names,
+                    Err(_) => panic!(
+                        "no obstacle {kind} in the DR; output:\n{}",
+                        lines.all().join("\n")
+                    ),
+                };
+                if c.kind == kind && c.node.starts_with("obstacle_") {
+                    names.insert(c.node);
+                    // Collect what else comes within a second.
+                    let soon = tokio::time::Instant::now() + Duration::from_secs(1);
+                    return loop {
+                        match tokio::time::timeout_at(soon, changes.recv()).await {
+                            Ok(Ok(c)) if c.kind == kind && c.node.starts_with("obstacle_") => {
+                                names.insert(c.node);
+                            }
+                            Ok(_) => {}
+                            Err(_) => break names,
+                        }
+                    };
+                }
+            }
+        }
+    };
+    let added = obstacle_changes("node_added", Duration::from_secs(20)).await;
+    let first = added.iter().next().unwrap().clone();
+    let info = bus
+        .call(&topics::DR_GET_NODE, &node(&first), Duration::from_secs(2))
+        .await
+        .unwrap();
+    assert_eq!(info.node_type, "object");
+    assert_eq!(info.parent, "field");
+    let attr = |k: &str| {
+        info.attributes
+            .iter()
+            .find(|a| a.key == k)
+            .map(|a| a.value.clone())
+    };
+    assert!(
+        matches!(attr("obstacle_type"), Some(AttrValue::Text(t)) if ["opponent", "goalpost", "teammate", "fallen_opponent"].contains(&t.as_str())),
+        "{info:?}"
+    );
+    // (The first update may still be on its way.)
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+    let info = loop {
+        let i = bus
+            .call(&topics::DR_GET_NODE, &node(&first), Duration::from_secs(1))
+            .await
+            .unwrap();
+        if i.attributes.iter().any(|a| a.key == "last_seen_ns") {
+            break i;
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "no last-seen time: {i:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    };
+    assert!(
+        info.attributes.iter().any(|a| a.key == "seen_age_s"
+            && matches!(a.value, AttrValue::Float(s) if (0.0..3.5).contains(&s))),
+        "{info:?}"
+    );
+    println!("obstacle nodes added: {added:?}");
+
+    // ... and go when nobody has seen them for the fusion's 3 s: the field stops sending.
+    let field = eventually("field pid", Duration::from_secs(10), || {
+        component_pid(&launch, "spl_field")
+    });
+    signal(field, "STOP");
+    let mut removed = std::collections::BTreeSet::new();
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(20);
+    while removed.len() < added.len() {
+        let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+        match tokio::time::timeout(left, changes.recv()).await {
+            Ok(Ok(c)) if c.kind == "node_removed" && c.node.starts_with("obstacle_") => {
+                removed.insert(c.node);
+            }
+            Ok(_) => {}
+            Err(_) => {
+                signal(field, "CONT");
+                panic!("removed only {removed:?} of {added:?}");
+            }
+        }
+    }
+    assert!(
+        added.is_subset(&removed),
+        "added {added:?}, removed {removed:?}"
+    );
+    assert!(
+        bus.call(&topics::DR_GET_NODE, &node(&first), Duration::from_secs(2))
+            .await
+            .is_err(),
+        "{first} is still in the DR"
+    );
+    // The field comes back: so do the obstacles.
+    signal(field, "CONT");
+    let again = obstacle_changes("node_added", Duration::from_secs(20)).await;
+    assert!(!again.is_empty());
 }

@@ -83,6 +83,7 @@ async fn main() -> anyhow::Result<()> {
         team_number: 19,
         link_timeout_s: 5.0,
         dr_updates: false,
+        propose_via: Default::default(),
     };
     let bridge_bus = Bus::open(&args, "nao_bridge").await?;
     let (stop, shutdown) = interfaces::Shutdown::new();

@@ -7,8 +7,10 @@
 //!   `nao/local_model`, fused into `nao/world_model`; GameController packets become
 //!   `nao/game_state`; link changes ("robot not responding") go on `nao/link`.
 //! - With `dr_updates`, the team model and the game state are mirrored into the DR's coach scene
-//!   (see [`crate::dr`]) at most every 200 ms, one `dr/update` in flight; failures are counted
-//!   (`dr/update_failed`) and logged at most once every 5 s.
+//!   (see [`crate::dr`]) at most every 200 ms, one request in flight; the obstacle tracks become
+//!   nodes through structural proposals (`executive/propose`, or `dr/propose` straight with
+//!   [`ProposeVia::Dr`]). Failures are counted (`dr/update_failed`, `dr/propose_failed`,
+//!   `dr/propose_refused/<reason>`) and logged at most once every 5 s.
 //! - Every dropped datagram is counted per kind and reason (`drop/<kind>/<reason>` on the
 //!   component's `diagnostics`) and logged at most once a second per reason.
 
@@ -40,34 +42,137 @@ pub struct Config {
     pub link_timeout_s: f64,
     /// Mirror the team model and the game state into the DR (`dr/update`).
     pub dr_updates: bool,
+    /// Where the obstacle nodes' structural proposals go.
+    pub propose_via: ProposeVia,
 }
 
-type Latest = (Option<NaoWorldModel>, Option<GameState>);
+/// Where structural DR changes (obstacle nodes) are proposed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ProposeVia {
+    /// `executive/propose`: the Executive checks them against the game first (the seed's rule
+    /// for structural changes), then forwards them to the DR.
+    #[default]
+    Executive,
+    /// `dr/propose`: straight to the DR (graphs without an Executive).
+    Dr,
+}
 
-/// Sends the latest team model and game state to the DR, at most every [`crate::dr::MIRROR_PERIOD`].
-async fn mirror_to_dr(bus: Bus, mut latest: tokio::sync::watch::Receiver<Latest>) {
+impl ProposeVia {
+    /// The service proposals are sent to.
+    pub fn service(
+        self,
+    ) -> &'static interfaces::Service<
+        interfaces::msg::dr::ProposeRequest,
+        interfaces::msg::dr::ProposeReply,
+    > {
+        match self {
+            ProposeVia::Executive => &topics::EXECUTIVE_PROPOSE,
+            ProposeVia::Dr => &topics::DR_PROPOSE,
+        }
+    }
+}
+
+/// The latest fused model (bus form), game state and obstacle tracks (with their ids).
+type Latest = (
+    Option<NaoWorldModel>,
+    Option<GameState>,
+    Vec<crate::types::TrackedObstacle>,
+);
+
+/// Logs at most once every 5 s.
+struct RateLimited(Option<Instant>);
+
+impl RateLimited {
+    fn ready(&mut self) -> bool {
+        if self.0.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
+            self.0 = Some(Instant::now());
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// Sends the latest team model and game state to the DR, at most every
+/// [`crate::dr::MIRROR_PERIOD`]: first the obstacle nodes' structural changes (one proposal in
+/// flight at a time), then one `dr/update` for everything that exists.
+async fn mirror_to_dr(
+    bus: Bus,
+    mut latest: tokio::sync::watch::Receiver<Latest>,
+    propose_via: ProposeVia,
+) {
+    use crate::dr::{ObstacleMirror, ObstacleMirrorConfig, ProposalOutcome};
+    use interfaces::CallError;
+    use std::sync::atomic::Ordering::Relaxed;
     let failed = bus.counters().counter("dr/update_failed");
     let sent = bus.counters().counter("dr/updates_sent");
-    let mut last_warning: Option<Instant> = None;
+    let propose_failed = bus.counters().counter("dr/propose_failed");
+    let mut update_log = RateLimited(None);
+    let mut propose_log = RateLimited(None);
+    let mut mirror = ObstacleMirror::new(ObstacleMirrorConfig::default());
+    let service = propose_via.service();
     while latest.changed().await.is_ok() {
-        let req = {
-            let v = latest.borrow_and_update();
-            match &v.0 {
-                Some(w) => crate::dr::update_request(w, v.1.as_ref()),
-                None => crate::dr::update_request(&NaoWorldModel::default(), v.1.as_ref()),
-            }
-        };
+        let (world, game, obstacles) = latest.borrow_and_update().clone();
+        for change in mirror.changes(&obstacles) {
+            let req = interfaces::msg::dr::ProposeRequest {
+                change: change.clone(),
+                ..Default::default()
+            };
+            let outcome = match bus.call(service, &req, Duration::from_millis(1500)).await {
+                Ok(r) if r.accepted => {
+                    tracing::info!("DR: {:?} {} (change {})", change.kind, change.name, r.seq);
+                    ProposalOutcome::Accepted
+                }
+                Ok(r) => {
+                    bus.counters()
+                        .incr(&format!("dr/propose_refused/{}", r.reason_code));
+                    if propose_log.ready() {
+                        tracing::warn!(
+                            "the DR refused {:?} {} ({}): {}",
+                            change.kind,
+                            change.name,
+                            r.reason_code,
+                            r.reason
+                        );
+                    }
+                    ProposalOutcome::Refused(r.reason_code)
+                }
+                Err(e) => {
+                    let n = propose_failed.fetch_add(1, Relaxed) + 1;
+                    if propose_log.ready() {
+                        tracing::warn!(
+                            "cannot propose {:?} {} to {} ({n} failed so far): {e}",
+                            change.kind,
+                            change.name,
+                            service.name()
+                        );
+                    }
+                    ProposalOutcome::Failed
+                }
+            };
+            mirror.outcome(&change, &outcome);
+        }
+        let mut req = crate::dr::update_request(
+            world.as_ref().unwrap_or(&NaoWorldModel::default()),
+            game.as_ref(),
+        );
+        let stamp_ns = world.as_ref().map_or(0, |w| w.header.stamp_ns);
+        mirror.add_updates(&obstacles, stamp_ns, &mut req);
         match bus
             .call(&topics::DR_UPDATE, &req, Duration::from_millis(500))
             .await
         {
             Ok(_) => {
-                sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                sent.fetch_add(1, Relaxed);
             }
             Err(e) => {
-                let n = failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                if last_warning.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
-                    last_warning = Some(Instant::now());
+                let n = failed.fetch_add(1, Relaxed) + 1;
+                // A batch naming an obstacle node the DR no longer has (it restarted) fails as
+                // a whole: propose the obstacles again.
+                if matches!(&e, CallError::Remote(_)) && mirror.present().next().is_some() {
+                    mirror.forget_nodes();
+                }
+                if update_log.ready() {
                     tracing::warn!("cannot update the DR ({n} failed so far): {e}");
                 }
             }
@@ -136,10 +241,13 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let link_pub = bus.publisher(&topics::NAO_LINK).await?;
     let commands = bus.subscriber(&topics::NAO_COMMAND).await?;
     let counters = bus.counters().clone();
-    let (latest_tx, latest_rx) = tokio::sync::watch::channel::<Latest>((None, None));
+    let (latest_tx, latest_rx) = tokio::sync::watch::channel::<Latest>((None, None, Vec::new()));
     if config.dr_updates {
-        tokio::spawn(mirror_to_dr(bus.clone(), latest_rx));
-        tracing::info!("mirroring the team model and the game state into the DR");
+        tokio::spawn(mirror_to_dr(bus.clone(), latest_rx, config.propose_via));
+        tracing::info!(
+            "mirroring the team model and the game state into the DR (obstacle nodes through {})",
+            config.propose_via.service().name()
+        );
     }
     tracing::info!(
         "bridge: commands to {robot}, debug packets on {}:{}, GameController on {}:{}",
@@ -181,9 +289,15 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                     let mut m = convert::local_model_to_bus(&model);
                     local_pub.publish(&mut m).await?;
                     fusion.ingest(&model, t);
-                    let mut w = convert::world_model_to_bus(&fusion.snapshot(t));
+                    let snapshot = fusion.snapshot(t);
+                    let mut w = convert::world_model_to_bus(&snapshot);
                     world_pub.publish(&mut w).await?;
-                    latest_tx.send_modify(|l| l.0 = Some(w));
+                    if config.dr_updates {
+                        latest_tx.send_modify(|l| {
+                            l.0 = Some(w);
+                            l.2 = snapshot.obstacles;
+                        });
+                    }
                     if let Some((player, e)) = event {
                         let mut l = convert::link_event_to_bus(player, &e, t);
                         link_pub.publish(&mut l).await?;
@@ -195,11 +309,28 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 if let Some(state) = inbound.on_gamecontroller(&gc_buf[..n], from, now_s()) {
                     let mut g = convert::game_state_to_bus(&state, config.team_number);
                     game_pub.publish(&mut g).await?;
-                    latest_tx.send_modify(|l| l.1 = Some(g));
+                    if config.dr_updates {
+                        latest_tx.send_modify(|l| l.1 = Some(g));
+                    }
                 }
             }
             _ = tick.tick() => {
                 let t = now_s();
+                // Obstacles expire without packets too (a silent field): keep the mirror's
+                // track list current.
+                if config.dr_updates {
+                    let obstacles = fusion.snapshot(t).obstacles;
+                    latest_tx.send_if_modified(|l| {
+                        let ids = |v: &[crate::types::TrackedObstacle]| {
+                            v.iter().map(|o| o.id).collect::<Vec<_>>()
+                        };
+                        let changed = ids(&l.2) != ids(&obstacles);
+                        if changed {
+                            l.2 = obstacles;
+                        }
+                        changed
+                    });
+                }
                 for (player, e) in inbound.poll(t) {
                     tracing::warn!("robot {player} not responding");
                     let mut l = convert::link_event_to_bus(player, &e, t);

@@ -1,7 +1,7 @@
 use clap::Parser;
 use interfaces::node::{self, Interface, NodeArgs};
 use interfaces::topics;
-use nao_bridge::component::{Config, run};
+use nao_bridge::component::{Config, ProposeVia, run};
 use std::net::IpAddr;
 use std::process::ExitCode;
 
@@ -36,10 +36,17 @@ struct Args {
     /// No packet from a robot for this long: "robot not responding" (s).
     #[arg(long, default_value_t = 1.0)]
     link_timeout_s: f64,
-    /// Mirror the team model (our robots, the ball) and the game state into the deep
-    /// representation's coach scene with `dr/update` (needs `deep_representation --scene coach`).
+    /// Mirror the team model (our robots, the ball, the obstacles) and the game state into the
+    /// deep representation's coach scene with `dr/update` (needs `deep_representation --scene
+    /// coach`). Obstacles come and go, so their nodes are added and removed by structural
+    /// proposals (see --dr-propose-via).
     #[arg(long)]
     dr_updates: bool,
+    /// Where the obstacle nodes' structural proposals go with --dr-updates: `executive` (checked
+    /// against the game by the Executive first, as every structural change should be) or `dr`
+    /// (straight to the DR, for graphs without an Executive).
+    #[arg(long, value_enum, default_value_t = ProposeVia::Executive)]
+    dr_propose_via: ProposeVia,
 }
 
 fn main() -> ExitCode {
@@ -51,7 +58,9 @@ fn main() -> ExitCode {
         .publishes(&topics::NAO_GAME_STATE)
         .publishes(&topics::NAO_LINK);
     if args.dr_updates {
-        base = base.calls(&topics::DR_UPDATE);
+        base = base
+            .calls(&topics::DR_UPDATE)
+            .calls(args.dr_propose_via.service());
     }
     let interface = Interface {
         hardware: vec![
@@ -70,6 +79,7 @@ fn main() -> ExitCode {
         team_number: args.team_number,
         link_timeout_s: args.link_timeout_s,
         dr_updates: args.dr_updates,
+        propose_via: args.dr_propose_via,
     };
     node::run(args.node, interface, |bus, shutdown| {
         run(bus, config, shutdown)

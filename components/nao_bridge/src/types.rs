@@ -277,6 +277,20 @@ impl ObstacleKind {
         }
     }
 
+    /// The snake_case name (`opponent`, `fallen_some_robot`), as the DR's `obstacle_type`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ObstacleKind::Goalpost => "goalpost",
+            ObstacleKind::Unknown => "unknown",
+            ObstacleKind::SomeRobot => "some_robot",
+            ObstacleKind::Opponent => "opponent",
+            ObstacleKind::Teammate => "teammate",
+            ObstacleKind::FallenSomeRobot => "fallen_some_robot",
+            ObstacleKind::FallenOpponent => "fallen_opponent",
+            ObstacleKind::FallenTeammate => "fallen_teammate",
+        }
+    }
+
     /// The kind for a wire byte, `None` when out of range.
     pub fn from_wire(value: u8) -> Option<Self> {
         Self::ALL.get(usize::from(value)).copied()
@@ -774,6 +788,9 @@ pub struct BallEstimate {
 /// A tracked obstacle of the global world model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TrackedObstacle {
+    /// The track's identity: stable while it lives, never reused by the same fusion (names
+    /// its DR node, `obstacle_<id>`).
+    pub id: u32,
     /// Most specific kind seen.
     pub kind: ObstacleKind,
     /// Smoothed centre (global, mm).

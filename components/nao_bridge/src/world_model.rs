@@ -25,7 +25,9 @@
 //!
 //! Obstacle timestamps are robot-clock milliseconds. Each robot's clock offset to ours is
 //! estimated as the minimum over all its packets of `received_ms - last_seen_ms` (the freshest
-//! sighting, up to the network latency), so each obstacle gets a time on our clock. An
+//! sighting, up to the network latency), so each obstacle gets a time on our clock; the
+//! estimate starts again when the robot's clock jumps back (a reboot) or after a silence longer
+//! than `robot_timeout_s` (its software may have stalled with its clock). An
 //! observation is associated with the nearest track within `obstacle_gate_mm` (greedy), moves
 //! it by exponential smoothing and keeps the most specific kind; unassociated fresh
 //! observations start tracks; tracks unseen for `obstacle_timeout_s` are dropped. Obstacles
@@ -276,6 +278,8 @@ struct RobotEntry {
 
 #[derive(Debug, Clone)]
 struct Track {
+    /// Stable identity for the track's lifetime (never reused by this fusion).
+    id: u32,
     kind: ObstacleKind,
     x: f64,
     y: f64,
@@ -290,6 +294,7 @@ pub struct WorldModelFusion {
     robots: BTreeMap<u8, RobotEntry>,
     ball: BallFilter,
     tracks: Vec<Track>,
+    next_track_id: u32,
     ball_updates: u64,
 }
 
@@ -306,6 +311,7 @@ impl WorldModelFusion {
             robots: BTreeMap::new(),
             ball,
             tracks: Vec::new(),
+            next_track_id: 0,
             ball_updates: 0,
         }
     }
@@ -333,6 +339,11 @@ impl WorldModelFusion {
             max_last_seen_ms: 0,
             last_ball: None,
         });
+        // Back after a silence longer than the robot time-out: the robot may have rebooted or
+        // its software stalled (its clock stood still), so its clock offset is estimated anew.
+        if received_s - entry.received_s > self.config.robot_timeout_s {
+            entry.clock_offset_ms = None;
+        }
         entry.model = model.clone();
         entry.received_s = received_s;
 
@@ -374,6 +385,10 @@ impl WorldModelFusion {
             .values()
             .map(|r| r.model.pose.position())
             .collect();
+        // Expired tracks go before association: a sighting never revives one.
+        let timeout = self.config.obstacle_timeout_s;
+        self.tracks
+            .retain(|t| received_s - t.last_seen_s <= timeout);
         let mut taken = vec![false; self.tracks.len()];
         for o in &model.obstacles {
             let Some(offset) = offset else { break };
@@ -414,18 +429,20 @@ impl WorldModelFusion {
                         }
                     }
                 }
-                None => self.tracks.push(Track {
-                    kind: o.kind,
-                    x: ox,
-                    y: oy,
-                    last_seen_s: t_obs,
-                    observations: 1,
-                }),
+                None => {
+                    let id = self.next_track_id;
+                    self.next_track_id = self.next_track_id.wrapping_add(1);
+                    self.tracks.push(Track {
+                        id,
+                        kind: o.kind,
+                        x: ox,
+                        y: oy,
+                        last_seen_s: t_obs,
+                        observations: 1,
+                    })
+                }
             }
         }
-        let timeout = self.config.obstacle_timeout_s;
-        self.tracks
-            .retain(|t| received_s - t.last_seen_s <= timeout);
         true
     }
 
@@ -470,6 +487,7 @@ impl WorldModelFusion {
                     .all(|o| f64::from(o.distance_to(&p)) >= c.own_robot_exclusion_mm)
             })
             .map(|t| TrackedObstacle {
+                id: t.id,
                 kind: t.kind,
                 center: FieldPoint::new(t.x as f32, t.y as f32),
                 age_s: (now_s - t.last_seen_s).max(0.0),
@@ -767,6 +785,26 @@ mod tests {
         }
         let s = w.snapshot(4.9);
         assert_eq!(s.obstacles.len(), 1, "the unseen one is dropped after 3 s");
+        assert_eq!(s.obstacles[0].id, first.id, "a track keeps its identity");
+        // The robot goes silent for 10 s with its clock stopped (its software stalled): once it
+        // is back, its sightings are fresh again (the clock offset is estimated anew), and the
+        // track that expired meanwhile comes back under a new identity.
+        let frozen = robot_ms(4.9);
+        for i in 0..3 {
+            let t = 15.0 + f64::from(i) * 0.1;
+            let mut m = local(2, (0.0, 0.0), (500.0, 0.0), 0.0);
+            m.obstacles = vec![Obstacle {
+                kind: ObstacleKind::Opponent,
+                center: FieldPoint::new(2000.0, 1000.0),
+                last_seen_ms: frozen + 100 * (i + 1),
+            }];
+            m.obstacles_seen = 1;
+            w.ingest(&m, t);
+        }
+        let s = w.snapshot(15.2);
+        assert_eq!(s.obstacles.len(), 1, "{s:?}");
+        assert!(s.obstacles[0].age_s < 0.05, "{s:?}");
+        assert_ne!(s.obstacles[0].id, first.id);
         // Aged in between: at 2.9 s the second one was 2 s old.
         let mut w2 = WorldModelFusion::new(FusionConfig::default());
         let mut m = local(2, (0.0, 0.0), (0.0, 0.0), 0.0);

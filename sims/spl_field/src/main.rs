@@ -46,6 +46,13 @@ struct Args {
     /// Whether the two opponents stand still in PLAYING (obstacles only; scripted scenarios).
     #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
     passive_opponents: bool,
+    /// Penalise the controlled robot this many simulated seconds into PLAYING (scripted
+    /// scenarios): the GameController reports it, the robot stands out of play.
+    #[arg(long)]
+    penalty_at_s: Option<f64>,
+    /// Length of that penalty (simulated s).
+    #[arg(long, default_value_t = 45.0)]
+    penalty_s: f64,
 }
 
 fn main() -> ExitCode {
@@ -65,6 +72,8 @@ fn main() -> ExitCode {
     if let Some(f) = args.falls_per_min {
         sim.falls_per_min = f.max(0.0);
     }
+    sim.penalty_at_s = args.penalty_at_s.filter(|s| s.is_finite() && *s >= 0.0);
+    sim.penalty_s = args.penalty_s.max(0.0);
     if args.passive_opponents {
         sim.passive_robots = vec![RobotId::KEEPER, RobotId::DEFENDER];
     }

@@ -9,7 +9,10 @@
 //!   at 2 Hz to `operator:gamecontroller_port`.
 //! - Ground truth is published on `sim/field_truth` at 10 Hz, for tests and viewers only.
 //! - Scripted falls, for tests and demos: `SIGUSR1` knocks the controlled robot over, `SIGUSR2`
-//!   the autonomous teammate (each gets up after the configured get-up time).
+//!   the autonomous teammate (each gets up after the configured get-up time). A scripted
+//!   penalty of the controlled robot comes from the configuration (`penalty_at_s`).
+//! - Link loss, for tests: stop the process (`SIGSTOP`) and continue it (`SIGCONT`); the field's
+//!   time stands still meanwhile, as a robot whose software stalled.
 
 use crate::sim::SplField;
 use crate::types::{Datagram, RobotId, SimConfig, SimEvent};

@@ -28,6 +28,10 @@ pub const DEBUG_PERIOD_S: f64 = 0.1;
 pub const GC_PERIOD_S: f64 = 0.5;
 /// How long a robot keeps an unseen obstacle in its model (s).
 const OBSTACLE_MEMORY_S: f64 = 2.0;
+/// A shot needs this much room (mm) between the ball's path and any opponent's centre.
+const SHOT_LANE_MARGIN_MM: f64 = 250.0;
+/// The autonomous striker shoots through a free lane from this far up the field on (mm).
+const SHOT_FROM_X_MM: f64 = 1000.0;
 /// A pass needs the ball to travel this far between kick and touch (mm).
 const PASS_MIN_DISTANCE_MM: f64 = 1000.0;
 /// Kick motion duration: the robot stands still (s).
@@ -92,6 +96,7 @@ pub struct SimRobot {
     pub head_yaw: f64,
     vel: V2,
     fallen_until: Option<f64>,
+    penalised_until: Option<f64>,
     busy_until: f64,
     no_contact_until: f64,
     in_contact: bool,
@@ -110,6 +115,7 @@ impl SimRobot {
             head_yaw: 0.0,
             vel: V2::ZERO,
             fallen_until: None,
+            penalised_until: None,
             busy_until: 0.0,
             no_contact_until: 0.0,
             in_contact: false,
@@ -123,6 +129,11 @@ impl SimRobot {
     /// Whether the robot is down.
     pub fn is_fallen(&self) -> bool {
         self.fallen_until.is_some()
+    }
+
+    /// Whether the robot has a penalty (it stands still, out of play).
+    pub fn is_penalised(&self) -> bool {
+        self.penalised_until.is_some()
     }
 
     fn robot_ms(&self, t: f64) -> u32 {
@@ -180,6 +191,8 @@ pub struct SplField {
     packet_number: u8,
     events: Vec<(f64, SimEvent)>,
     whistle_at_s: Option<f64>,
+    /// Whether the scripted penalty ([`SimConfig::penalty_at_s`]) was given.
+    scripted_penalty_done: bool,
 }
 
 fn ready_pose(id: RobotId) -> (V2, f64) {
@@ -230,6 +243,7 @@ impl SplField {
             packet_number: 0,
             events: Vec::new(),
             whistle_at_s: None,
+            scripted_penalty_done: false,
             config,
         }
     }
@@ -310,6 +324,17 @@ impl SplField {
         }
     }
 
+    /// Penalise a robot now for `secs` (scripted scenarios; see [`SimConfig::penalty_at_s`]).
+    pub fn penalise(&mut self, id: RobotId, secs: f64) {
+        let until = self.time_s + secs.max(0.0);
+        if let Some(r) = self.robots.iter_mut().find(|r| r.id == id) {
+            r.penalised_until = Some(until);
+            r.vel = V2::ZERO;
+            self.events
+                .push((self.time_s, SimEvent::Penalised { robot: id }));
+        }
+    }
+
     // ----- commands ----------------------------------------------------------------------
 
     /// Apply a command packet as the controlled robot's `CommandReceiver` would: exactly 11
@@ -381,7 +406,25 @@ impl SplField {
             _ => {}
         }
 
+        if self.state == GameState::Playing
+            && let Some(at) = self.config.penalty_at_s
+            && in_state >= at
+            && !self.scripted_penalty_done
+        {
+            self.scripted_penalty_done = true;
+            self.penalise(RobotId::CONTROLLED, self.config.penalty_s);
+        }
         self.update_falls();
+        for i in 0..self.robots.len() {
+            if let Some(until) = self.robots[i].penalised_until
+                && self.time_s >= until
+            {
+                self.robots[i].penalised_until = None;
+                let id = self.robots[i].id;
+                self.events
+                    .push((self.time_s, SimEvent::Unpenalised { robot: id }));
+            }
+        }
         for i in 0..self.robots.len() {
             self.update_head(i);
             self.perceive(i);
@@ -545,7 +588,8 @@ impl SplField {
     }
 
     fn active(&self, id: RobotId) -> bool {
-        self.robot(id).is_some_and(|r| !r.is_fallen())
+        self.robot(id)
+            .is_some_and(|r| !r.is_fallen() && !r.is_penalised())
     }
 
     /// Our team's ball: the most recent sighting of either of our robots.
@@ -562,6 +606,36 @@ impl SplField {
         let keeper_y = self.robot_pos(RobotId::KEEPER).map_or(0.0, |p| p.y);
         let y = if keeper_y > 0.0 { -450.0 } else { 450.0 };
         V2::new(FIELD_HALF_LENGTH_MM + 300.0, y)
+    }
+
+    /// Whether no opponent stands within `margin` (mm) of a ball rolling from `from` to `to`.
+    fn lane_clear(&self, from: V2, to: V2, margin: f64) -> bool {
+        let d = to - from;
+        let len2 = d.dot(d).max(1.0);
+        [RobotId::KEEPER, RobotId::DEFENDER]
+            .iter()
+            .filter_map(|id| self.robot(*id))
+            .filter(|r| !r.is_fallen())
+            .all(|r| {
+                let k = ((r.pos - from).dot(d) / len2).clamp(0.0, 1.0);
+                (from + d * k - r.pos).norm() >= margin
+            })
+    }
+
+    /// A shot at the goal with a free lane, if there is one: aimed inside either post, the
+    /// side away from the keeper first, then nearer the posts.
+    fn open_shot(&self, ball: V2) -> Option<V2> {
+        let first = self.shot_target();
+        let x = first.x;
+        [
+            first.y,
+            -first.y,
+            first.y.signum() * 600.0,
+            -first.y.signum() * 600.0,
+        ]
+        .into_iter()
+        .map(|y| V2::new(x, y))
+        .find(|t| self.lane_clear(ball, *t, SHOT_LANE_MARGIN_MM))
     }
 
     /// A free point to dribble to: towards the opponent goal, away from the nearest opponent.
@@ -590,7 +664,7 @@ impl SplField {
 
     fn decide(&self, i: usize) -> Intent {
         let r = &self.robots[i];
-        if r.is_fallen() || self.time_s < r.busy_until {
+        if r.is_fallen() || r.is_penalised() || self.time_s < r.busy_until {
             return Intent::Stand;
         }
         match self.state {
@@ -711,7 +785,7 @@ impl SplField {
         };
         let me = r.pos;
         let ctl = self.robot(RobotId::CONTROLLED);
-        let ctl_active = ctl.is_some_and(|c| !c.is_fallen());
+        let ctl_active = self.active(RobotId::CONTROLLED);
         let ctl_pos = ctl.map_or(V2::new(-9999.0, 0.0), |c| c.pos);
         let striker = !ctl_active || (ball - me).norm() < (ball - ctl_pos).norm();
         if !striker {
@@ -738,7 +812,16 @@ impl SplField {
                 speed: self.pass_speed((ctl_pos - ball).norm()),
             };
         }
-        if ball.x > 1000.0 {
+        // Shoot as soon as a lane to the goal is free (from the own half's front on), else
+        // from close in anyway; otherwise dribble round the nearest opponent.
+        if ball.x > SHOT_FROM_X_MM
+            && let Some(target) = self.open_shot(ball)
+        {
+            Intent::Kick {
+                target,
+                speed: 3000.0,
+            }
+        } else if ball.x > 3000.0 {
             Intent::Kick {
                 target: self.shot_target(),
                 speed: 3000.0,
@@ -1087,6 +1170,20 @@ impl SplField {
 
     /// The GameController's view now.
     pub fn gamecontroller_state(&self) -> GameControllerState {
+        let penalty = |side: Side, number: u8| {
+            self.robot(RobotId { side, number })
+                .and_then(|r| r.penalised_until)
+                .map_or(
+                    PlayerInfo {
+                        penalty: Penalty::None,
+                        secs_till_unpenalised: 0,
+                    },
+                    |until| PlayerInfo {
+                        penalty: Penalty::Pushing,
+                        secs_till_unpenalised: (until - self.time_s).ceil().clamp(0.0, 255.0) as u8,
+                    },
+                )
+        };
         let team = |number: u8, score: u8, budget: u16, side: Side| TeamInfo {
             team_number: number,
             field_player_colour: if side == Side::Us { 1 } else { 0 },
@@ -1096,12 +1193,7 @@ impl SplField {
             penalty_shot: 0,
             single_shots: 0,
             message_budget: budget,
-            players: (0..20)
-                .map(|_| PlayerInfo {
-                    penalty: Penalty::None,
-                    secs_till_unpenalised: 0,
-                })
-                .collect(),
+            players: (1..=20).map(|n| penalty(side, n)).collect(),
         };
         let secondary = match self.state {
             GameState::Ready => self.config.ready_s - (self.time_s - self.state_since_s),

@@ -97,6 +97,12 @@ pub struct SimConfig {
     pub localisation_sigma_mm: f64,
     /// Robots that stand still in PLAYING (scripted scenarios, a robot out of play).
     pub passive_robots: Vec<RobotId>,
+    /// A scripted penalty of the controlled robot: this many seconds into PLAYING (none when
+    /// `None`). The GameController reports it (pushing, with the seconds left) and the robot
+    /// stands still, executing no command, until it is over.
+    pub penalty_at_s: Option<f64>,
+    /// Length of a penalty (s).
+    pub penalty_s: f64,
 }
 
 impl Default for SimConfig {
@@ -121,6 +127,8 @@ impl Default for SimConfig {
             perception_sigma_per_mm: 0.02,
             localisation_sigma_mm: 20.0,
             passive_robots: Vec::new(),
+            penalty_at_s: None,
+            penalty_s: 45.0,
         }
     }
 }
@@ -170,6 +178,16 @@ pub enum SimEvent {
     },
     /// A robot got up.
     GotUp {
+        /// Who.
+        robot: RobotId,
+    },
+    /// The GameController penalised a robot.
+    Penalised {
+        /// Who.
+        robot: RobotId,
+    },
+    /// A robot's penalty is over.
+    Unpenalised {
         /// Who.
         robot: RobotId,
     },

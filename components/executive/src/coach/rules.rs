@@ -28,7 +28,9 @@
 //!    fallback, seed 000 §4.2.2).
 //! 7. **Never towards our own goal**: a kick, clearance or pass whose line from the ball runs
 //!    into our goal mouth (the coach's aim, or the teammate for a pass) is refused
-//!    ([`Refusal::OwnGoal`]), whatever was asked.
+//!    ([`Refusal::OwnGoal`]), whatever was asked. The aim only decides: the 11-byte command
+//!    packet has no field for it (its x, y are GoToPosition's and Turn's target), so it is not
+//!    sent.
 //!
 //! [`Memory`] keeps the last command sent (to resume it after a fall, a penalty or a lost link,
 //! unless it is done), a pending command (refused for now, kept for later), and the last-seen
