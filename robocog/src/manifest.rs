@@ -28,7 +28,8 @@
 //! stop_timeout_s = 5                 # SIGTERM, then SIGKILL after this long
 //! hardware = ["serial:/dev/ttyUSB0"] # ports it claims; two claims of one port are an error
 //! completes_graph = false            # true: when it exits 0, the graph is done (the launcher exits 0)
-//! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user)
+//! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user):
+//!                                    # topics it subscribes to, or services it calls
 //! enabled = "${simulate}"            # "true" (default) or "false" after substitution: a profile
 //!                                    # can switch a simulator off when real hardware is used
 //! ```
@@ -186,7 +187,8 @@ pub struct Component {
     pub stop_timeout: Duration,
     pub hardware: Vec<(String, Origin)>,
     pub completes_graph: bool,
-    /// Topics it subscribes to that are published from outside the graph.
+    /// Topics it subscribes to that are published from outside the graph, and services it
+    /// calls that are served from outside it.
     pub external_inputs: Vec<String>,
     pub origin: Origin,
     /// The directory of the manifest that declared it (relative binary paths start there).

@@ -2,6 +2,7 @@
 //! Helpers for the process-and-bus tests: find the built binaries, give every test a fresh
 //! namespace and a router on a free port, and wait for things with a time-out, always.
 
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
@@ -39,11 +40,37 @@ pub fn unique_namespace(tag: &str) -> String {
     )
 }
 
-/// A scratch folder for one test.
+/// Scratch folders older than this are removed by the next test run that makes one: a failed
+/// run's files stay long enough to be read, and recordings do not pile up in the temp dir.
+const SCRATCH_KEEP: Duration = Duration::from_secs(3600);
+
+/// A scratch folder for one test, under `<temp>/robocog-tests/<ns>`. The first call in a test
+/// process removes the folders of earlier runs older than [`SCRATCH_KEEP`] (no test lives that
+/// long: nextest stops a hung one after 5 min).
 pub fn scratch(ns: &str) -> PathBuf {
-    let d = std::env::temp_dir().join("robocog-tests").join(ns);
+    static PRUNED: std::sync::Once = std::sync::Once::new();
+    let root = std::env::temp_dir().join("robocog-tests");
+    PRUNED.call_once(|| prune_scratch(&root));
+    let d = root.join(ns);
     std::fs::create_dir_all(&d).expect("scratch dir");
     d
+}
+
+fn prune_scratch(root: &Path) {
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let old = entry
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age > SCRATCH_KEEP);
+        if old {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
 }
 
 /// Write a manifest into `dir`, with `@FIXTURE@` replaced by the fixture node's path.
@@ -324,4 +351,90 @@ pub fn component_pid(launch: &Launch, name: &str) -> Option<u32> {
         .find(|c| c["name"] == name)
         .and_then(|c| c["pid"].as_u64())
         .map(|p| p as u32)
+}
+
+/// Start `robocog <args> <connection flags>` in the background, stderr into `log`.
+pub fn start_tool(launch: &Launch, ns: &str, args: &[&str], log: &Path) -> Child {
+    Command::new(bin("robocog"))
+        .args(args)
+        .args(["--namespace", ns, "--connect", &launch.endpoint])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .unwrap()
+}
+
+/// Wait until a line of the file `log` satisfies `pred`.
+pub fn log_wait(log: &Path, what: &str, timeout: Duration, pred: impl Fn(&str) -> bool) -> String {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        if let Some(l) = text.lines().find(|l| pred(l)) {
+            return l.to_string();
+        }
+        assert!(
+            Instant::now() < deadline,
+            "timed out after {timeout:?} waiting for {what}; log:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// SIGTERM to a tool started with [`start_tool`], and its exit status (it must exit within 20 s).
+pub fn sigterm_and_wait(child: &mut Child, log: &Path) -> ExitStatus {
+    signal(child.id(), "TERM");
+    wait_child(child, Duration::from_secs(20)).unwrap_or_else(|| {
+        let _ = child.kill();
+        panic!(
+            "the tool ignored SIGTERM; log:\n{}",
+            std::fs::read_to_string(log).unwrap_or_default()
+        )
+    })
+}
+
+/// A recorded message, as the mcap crate reads it.
+pub struct Rec {
+    pub topic: String,
+    pub type_name: String,
+    pub log_time: u64,
+    pub publish_time: u64,
+    pub sequence: u32,
+    pub data: Vec<u8>,
+}
+
+/// A finished recording: its summary, every message in file order, and the recorder's
+/// `robocog.record` metadata (namespace, drops per topic).
+pub fn read_recording(path: &Path) -> (mcap::Summary, Vec<Rec>, BTreeMap<String, String>) {
+    let bytes = std::fs::read(path).unwrap();
+    let summary = mcap::Summary::read(&bytes)
+        .unwrap()
+        .expect("a finished recording has a summary");
+    let msgs = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            Rec {
+                topic: m.channel.topic.clone(),
+                type_name: m
+                    .channel
+                    .schema
+                    .as_ref()
+                    .map(|s| s.name.clone())
+                    .unwrap_or_default(),
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+                sequence: m.sequence,
+                data: m.data.into_owned(),
+            }
+        })
+        .collect();
+    let mut meta = BTreeMap::new();
+    for idx in &summary.metadata_indexes {
+        let m = mcap::read::metadata(&bytes, idx).unwrap();
+        if m.name == "robocog.record" {
+            meta = m.metadata;
+        }
+    }
+    (summary, msgs, meta)
 }

@@ -131,6 +131,31 @@ external_inputs = ["chatter"]
     assert_eq!(code, 0, "{err}");
 }
 
+/// A replay graph leaves the robot out: the Executive's calls to `body/joint_goal` (and here to
+/// the DR) go to servers outside the graph, declared like external topics.
+#[test]
+fn a_called_service_declared_external_is_accepted() {
+    let executive = |external: &str| {
+        format!(
+            r#"[[component]]
+name = "executive"
+binary = "executive"
+args = ["--game", "touch"]
+external_inputs = ["game/command", "vision/ball_events", "vision/ball", "body/reach_status", "speech/speaking"{external}]
+"#
+        )
+    };
+    assert_rejected(
+        &executive(r#", "dr/propose", "dr/get_node""#),
+        2,
+        "calls service \"body/joint_goal\", which no component of the graph serves",
+    );
+    let (code, err, _) = check(&executive(
+        r#", "dr/propose", "dr/get_node", "body/joint_goal""#,
+    ));
+    assert_eq!(code, 0, "{err}");
+}
+
 #[test]
 fn two_claims_of_one_port_are_an_error() {
     assert_rejected(

@@ -10,48 +10,9 @@ use interfaces::{Bus, ConnectArgs};
 use robocog_tests::*;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// Start `robocog <args> <connection flags>` in the background, stderr into `log`.
-fn start_tool(launch: &Launch, ns: &str, args: &[&str], log: &Path) -> Child {
-    Command::new(bin("robocog"))
-        .args(args)
-        .args(["--namespace", ns, "--connect", &launch.endpoint])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(log).unwrap())
-        .spawn()
-        .unwrap()
-}
-
-/// Wait until a line of the file `log` satisfies `pred`.
-fn log_wait(log: &Path, what: &str, timeout: Duration, pred: impl Fn(&str) -> bool) -> String {
-    let deadline = Instant::now() + timeout;
-    loop {
-        let text = std::fs::read_to_string(log).unwrap_or_default();
-        if let Some(l) = text.lines().find(|l| pred(l)) {
-            return l.to_string();
-        }
-        assert!(
-            Instant::now() < deadline,
-            "timed out after {timeout:?} waiting for {what}; log:\n{text}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-fn sigterm_and_wait(child: &mut Child, log: &Path) -> ExitStatus {
-    signal(child.id(), "TERM");
-    wait_child(child, Duration::from_secs(20)).unwrap_or_else(|| {
-        let _ = child.kill();
-        panic!(
-            "the tool ignored SIGTERM; log:\n{}",
-            std::fs::read_to_string(log).unwrap_or_default()
-        )
-    })
-}
 
 /// What a test subscriber received on every topic of a namespace.
 type Received = Arc<Mutex<Vec<(Instant, String, String, Vec<u8>)>>>;
@@ -102,50 +63,6 @@ impl Tap {
         // Anything more would be a duplicate: give it a moment to show up.
         std::thread::sleep(Duration::from_millis(200));
     }
-}
-
-/// A recorded message, as the mcap crate reads it.
-struct Rec {
-    topic: String,
-    type_name: String,
-    log_time: u64,
-    publish_time: u64,
-    sequence: u32,
-    data: Vec<u8>,
-}
-
-fn read_recording(path: &Path) -> (mcap::Summary, Vec<Rec>, BTreeMap<String, String>) {
-    let bytes = std::fs::read(path).unwrap();
-    let summary = mcap::Summary::read(&bytes)
-        .unwrap()
-        .expect("a finished recording has a summary");
-    let msgs = mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(|m| {
-            let m = m.unwrap();
-            Rec {
-                topic: m.channel.topic.clone(),
-                type_name: m
-                    .channel
-                    .schema
-                    .as_ref()
-                    .map(|s| s.name.clone())
-                    .unwrap_or_default(),
-                log_time: m.log_time,
-                publish_time: m.publish_time,
-                sequence: m.sequence,
-                data: m.data.into_owned(),
-            }
-        })
-        .collect();
-    let mut meta = BTreeMap::new();
-    for idx in &summary.metadata_indexes {
-        let m = mcap::read::metadata(&bytes, idx).unwrap();
-        if m.name == "robocog.record" {
-            meta = m.metadata;
-        }
-    }
-    (summary, msgs, meta)
 }
 
 fn replay(launch: &Launch, ns: &str, file: &Path, extra: &[&str]) -> std::process::Output {
