@@ -62,3 +62,27 @@ need_browser() {
     (cd "$dir" && npm ci --no-audit --no-fund --silent)
   fi
 }
+
+# The `rerun` command line of the rerun-sdk Python package, at the exact version of the `rerun`
+# crate the viewer component links (components/viewer/Cargo.toml), for the viewer's tests
+# (`rerun rrd verify`, `rerun rrd print`) and for watching a game (`rerun` is the viewer
+# `robocog view` spawns). Installed once into a Python venv outside the clone; exports
+# ROBOCOG_RERUN_CLI, the path of its `rerun` executable. Idempotent.
+need_rerun_cli() {
+  local version
+  version="$(sed -n 's/^rerun = { version = "=\([0-9.]*\)".*/\1/p' "$ROOT/components/viewer/Cargo.toml")"
+  if [ -z "$version" ]; then
+    echo "need_rerun_cli: cannot read the rerun version from components/viewer/Cargo.toml" >&2
+    return 1
+  fi
+  local venv="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/rerun-sdk-$version"
+  if [ ! -x "$venv/bin/rerun" ]; then
+    need_debs python3-venv
+    step "installing the rerun viewer and CLI (pip rerun-sdk==$version) into $venv"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install --quiet --disable-pip-version-check "rerun-sdk==$version"
+    # The viewer and CLI send anonymous usage data by default; robots and CI do not.
+    "$venv/bin/rerun" analytics disable >/dev/null
+  fi
+  export ROBOCOG_RERUN_CLI="$venv/bin/rerun"
+}

@@ -24,6 +24,8 @@ enum Verb {
     Record(command::record::Args),
     /// Publish an MCAP recording back onto a namespace, at the recorded pace, scaled, or stepwise.
     Replay(command::replay::Args),
+    /// Watch a running graph's topics in the rerun viewer (live, or saved to an .rrd file).
+    View(command::view::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
             Verb::Component(a) => command::component::execute(a).await,
             Verb::Record(a) => command::record::execute(a).await,
             Verb::Replay(a) => command::replay::execute(a).await,
+            Verb::View(a) => command::view::execute(a).await,
             Verb::Check(_) => Ok(0),
         }
     });

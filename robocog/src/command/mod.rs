@@ -15,6 +15,7 @@ pub mod launch;
 pub mod record;
 pub mod replay;
 pub mod topic;
+pub mod view;
 
 /// The bus of a command-line tool: joins the graph without announcing itself as a component.
 pub(crate) async fn cli_bus(args: &interfaces::ConnectArgs) -> anyhow::Result<interfaces::Bus> {
