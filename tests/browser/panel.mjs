@@ -1,10 +1,12 @@
 // The command panel end to end in headless Chromium, against a running graph (the Rust test
 // tests/tests/panel.rs starts it and checks the robot's side):
 //   node panel.mjs --url http://127.0.0.1:PORT/ --out DIR --target-x -2000 --target-y -1500
-// Steps (each printed as `PANEL <step> <json>`): robots move on the page; GoToPosition + a click
-// on the field is sent (the page's target is printed for the robot-side check); the spoken answer
-// appears; a click off the carpet is refused with its reason; bad input over a raw WebSocket is
-// refused and the server keeps serving; screenshots of both views.
+// Steps (each printed as `PANEL <step> <json>`): robots move on the page; the coach machine's
+// status shows its state and a ball last-seen age that updates; GoToPosition + a click on the
+// field is sent (the page's target is printed for the robot-side check) and the coach status
+// shows it as the last command; the spoken answer appears; a click off the carpet is refused
+// with its reason; bad input over a raw WebSocket is refused and the server keeps serving; a
+// status that stops updating is greyed out; screenshots of both views.
 import { launch, report, fail, arg, until, clickField } from './lib.mjs';
 
 const url = arg('url');
@@ -41,6 +43,29 @@ try {
   report('game_state', { state: await page.textContent('#game-state'), time: await page.textContent('#time-left'),
     score: await page.textContent('#score'), link: await page.textContent('#link') });
 
+  // 1b. The coach machine's status (coach/status): its state, live, and the ball's last-seen age
+  // updating from new statuses (the Executive's sequence number advances), not only counted
+  // on the page.
+  const coach = async () => page.evaluate(() => {
+    const b = document.getElementById('coach-status');
+    const t = (id) => document.getElementById(id).textContent;
+    return { stale: b.dataset.stale, seq: Number(b.dataset.seq), ball: b.dataset.ballAge,
+      state: t('cs-state'), link: t('cs-link'), last: t('cs-last'), pending: t('cs-pending'), obstacles: t('cs-obst') };
+  });
+  const cs0 = await until('the coach status', 15000, async () => {
+    const c = await coach();
+    return c.stale === 'false' && c.state.startsWith('coach/') && c.ball !== '' && c;
+  });
+  const ages = new Set([cs0.ball]);
+  const cs1 = await until('the ball age to update from new statuses', 10000, async () => {
+    const c = await coach();
+    if (c.stale === 'false' && c.ball !== '') ages.add(c.ball);
+    return c.seq >= cs0.seq + 2 && ages.size >= 3 && c;
+  });
+  if (!cs1.state.includes('coach/playing')) fail(`the coach machine is not playing: ${cs1.state}`);
+  if (!(Number(cs1.ball) >= 0 && Number(cs1.ball) < 10)) fail(`the ball was not seen lately: ${JSON.stringify(cs1)}`);
+  report('coach_status', { first: cs0, later: cs1, ball_ages_shown: [...ages] });
+
   // 2. GoToPosition, then a click on the field.
   await page.click('button[data-name="GoToPosition"]');
   await clickField(page, tx, ty);
@@ -51,6 +76,13 @@ try {
   const accepted = await until('an accepted history entry', 5000, async () =>
     page.$eval('#history li', (li) => li.dataset.status === 'accepted' && li.textContent));
   report('history', { first: accepted });
+
+  // The coach machine's status names it as the last command sent.
+  const last = await until('GoToPosition as the last command in the coach status', 10000, async () => {
+    const c = await coach();
+    return c.last.startsWith(`GoToPosition (${Math.round(target.x_mm)}, ${Math.round(target.y_mm)}) mm`) && c;
+  });
+  report('coach_last', { last: last.last, pending: last.pending, state: last.state });
 
   // 3. The spoken answer appears (speech/say).
   const said = await until('the spoken answer', 15000, async () => page.$eval('#said', (ol) => ol.textContent.trim()));
@@ -114,6 +146,19 @@ try {
   // The page itself is still connected and the refusals are in its history.
   const refusals = await page.$$eval('#history li[data-status="refused"]', (l) => l.length);
   if (refusals < 4) fail(`expected at least 4 refused entries in the history, got ${refusals}`);
+
+  // 5b. Stale status is greyed out: move the page's estimate of the panel's clock 10 s ahead, as
+  // if coach/status had stopped arriving 10 s ago (the next render uses it), then put it back.
+  await page.evaluate(() => { window.panel.state.clockOffsetMs -= 10000; });
+  const stale = await until('the coach status to grey out', 3000, async () => {
+    const c = await coach();
+    const fresh = await page.textContent('#cs-fresh');
+    const opacity = await page.$eval('#coach-status dl', (d) => Number(getComputedStyle(d).opacity));
+    return c.stale === 'true' && opacity < 0.6 && fresh.startsWith('no coach/status for') && { fresh, opacity };
+  });
+  await page.evaluate(() => { window.panel.state.clockOffsetMs += 10000; });
+  await until('the coach status to be live again', 3000, async () => (await coach()).stale === 'false');
+  report('coach_stale', stale);
 
   // 6. The touch view (camera, ball window, dialog), by its shortcut.
   await page.keyboard.press('2');

@@ -6,7 +6,9 @@
 //!
 //! Asserted on the robot's side: GoToPosition plus a click on the field reaches the simulated
 //! robot as the exact command packet, and the robot walks towards the clicked point. Asserted on
-//! the page: robots move, the spoken answer appears, a click off the carpet is refused with its
+//! the page: robots move, the coach machine's status (`coach/status`) shows its state and a ball
+//! last-seen age updating from new statuses, then GoToPosition as the last command sent, and is
+//! greyed out when it goes stale; the spoken answer appears, a click off the carpet is refused with its
 //! reason, bad WebSocket input is refused and the server keeps serving, the camera and the ball's
 //! window show. Screenshots of both views land in the test's scratch folder.
 //!
@@ -252,11 +254,15 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
     };
 
     // Wait for the click, then check the robot's side.
+    let mut names = Vec::new();
     let clicked = loop {
-        let step = tokio::time::timeout(Duration::from_secs(90), steps.recv()).await;
+        let step = tokio::time::timeout(Duration::from_secs(120), steps.recv()).await;
         match step {
             Ok(Some(s)) if s.name == "clicked" => break s,
-            Ok(Some(s)) => eprintln!("browser: {} {}", s.name, s.data),
+            Ok(Some(s)) => {
+                eprintln!("browser: {} {}", s.name, s.data);
+                names.push(s.name);
+            }
             _ => panic!("the browser never clicked the field\n{}", browser_output()),
         }
     };
@@ -296,8 +302,7 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
     }
 
     // The rest of the browser's steps.
-    let mut names = Vec::new();
-    let status = tokio::time::timeout(Duration::from_secs(120), async {
+    let status = tokio::time::timeout(Duration::from_secs(180), async {
         while let Some(s) = steps.recv().await {
             eprintln!("browser: {} {}", s.name, s.data);
             names.push(s.name);
@@ -305,14 +310,23 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
         node.wait().await
     })
     .await
-    .unwrap_or_else(|_| panic!("the browser script ran over 120 s\n{}", browser_output()))
+    .unwrap_or_else(|_| panic!("the browser script ran over 180 s\n{}", browser_output()))
     .unwrap();
     assert!(
         status.success(),
         "the browser script failed\n{}",
         browser_output()
     );
-    for step in ["said", "refused_target", "raw_websocket", "touch", "done"] {
+    for step in [
+        "coach_status",
+        "coach_last",
+        "said",
+        "refused_target",
+        "raw_websocket",
+        "coach_stale",
+        "touch",
+        "done",
+    ] {
         assert!(names.iter().any(|n| n == step), "no {step} step: {names:?}");
     }
 

@@ -1,11 +1,13 @@
 //! The `command_generator` process: the bus on one side, the pages on the other.
 //!
 //! Subscribes to what both games publish, keeps the latest value of each state topic in the
-//! [`Hub`] (throttled per page, see [`STATE_RATES`]) and passes events on; publishes the accepted
+//! [`Hub`] (throttled per page, see [`STATE_RATES`]) and passes events on; `coach/status` goes
+//! to the pages in its own shape ([`crate::coach_status`]); publishes the accepted
 //! commands on `coach/request`, `game/command` and `game/answer`. Camera frames are decimated to
 //! `camera_hz` before they are encoded, so a 30 Hz camera costs a few encodes a second.
 
 use crate::camera;
+use crate::coach_status;
 use crate::panel::Outgoing;
 use crate::server::{Hub, router};
 use interfaces::msg::Message;
@@ -37,6 +39,7 @@ pub const STATE_RATES: &[(&str, f64)] = &[
     ("nao/game_state", 4.0),
     ("vision/ball", 10.0),
     ("executive/transitions", 10.0),
+    ("coach/status", 4.0),
 ];
 
 fn interval_of(topic: &str) -> Duration {
@@ -95,6 +98,23 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
         |m| format!("/{}", m.machine),
     )
     .await?;
+    // The coach machine's status, in the page's own shape (see `coach_status`).
+    {
+        let sub = bus.subscriber(&topics::COACH_STATUS).await?;
+        let hub = hub.clone();
+        let every = interval_of(topics::COACH_STATUS.name());
+        tasks.spawn(async move {
+            loop {
+                let m = sub.recv().await?;
+                let view = coach_status::view(&m, crate::server::now_ms());
+                hub.set_state(
+                    topics::COACH_STATUS.name(),
+                    every,
+                    serde_json::to_string(&view)?,
+                );
+            }
+        });
+    }
     // Events: every one, in order.
     event(&mut tasks, &bus, &hub, &topics::NAO_LINK).await?;
     event(&mut tasks, &bus, &hub, &topics::SPEECH_SAY).await?;

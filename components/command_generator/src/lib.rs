@@ -37,10 +37,11 @@
 //!
 //! | `type` | fields | when |
 //! |---|---|---|
-//! | `hello` | `catalog` (buttons, shortcuts, field size), `strategy`, `max_message_bytes` | on connect |
+//! | `hello` | `catalog` (buttons, shortcuts, field size), `strategy`, `max_message_bytes`, `server_time_ms` (the panel's clock, ms since the Unix epoch), `stale_after_ms` | on connect |
 //! | `reply` | `id` (the request's), `ok`, `entry` (the history entry: `label`, `status`, `reason`, `target`) | after each request |
 //! | `history` | `entries` (oldest first; `status` is `accepted`, `refused`, `replaced` or `pending`) | on connect and on every change |
 //! | `state` | `topic`, `data` (the bus message as JSON) | the latest of `nao/world_model`, `nao/local_model` (per robot), `nao/game_state`, `vision/ball`, `executive/transitions` (per machine), `vision/rgbd` (image size, stamp, sequence number, and `track`: the `vision/ball` result for that very frame, or null), each at most at its rate of [`component::STATE_RATES`] |
+//! | `coach_status` | the coach machine's state, pending command and why it waits, last command, last-seen ages of ball and obstacles, link: see [`coach_status`] | the latest `coach/status`, at most 4 a second |
 //! | `event` | `topic`, `data` | every message of `nao/link`, `speech/say`, `speech/speaking`, `speech/utterance`, `game/command`, `executive/log`, `vision/ball_events`; the last [`server::EVENT_REPLAY`] are replayed on connect |
 //!
 //! A binary message is the latest camera image (JPEG), at most `--camera-hz` a second; the
@@ -49,6 +50,7 @@
 
 pub mod camera;
 pub mod catalog;
+pub mod coach_status;
 pub mod component;
 pub mod panel;
 pub mod protocol;

@@ -55,6 +55,7 @@ fn main() -> ExitCode {
             .subscribes(&topics::GAME_COMMAND)
             .subscribes(&topics::EXECUTIVE_TRANSITIONS)
             .subscribes(&topics::EXECUTIVE_LOG)
+            .subscribes(&topics::COACH_STATUS)
     };
     if !args.node.describe
         && let Err(e) =

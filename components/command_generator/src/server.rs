@@ -209,6 +209,8 @@ impl Hub {
             "catalog": crate::catalog::catalog_json(),
             "strategy": format!("{:?}", panel.strategy()),
             "max_message_bytes": MAX_MESSAGE_BYTES,
+            "server_time_ms": now_ms(),
+            "stale_after_ms": crate::coach_status::STALE_AFTER_MS,
         })
         .to_string()
     }
@@ -227,7 +229,8 @@ fn reply_json(id: u64, ok: bool, entry: &Entry) -> String {
     json!({ "type": "reply", "id": id, "ok": ok, "entry": entry }).to_string()
 }
 
-fn now_ms() -> u64 {
+/// The panel's clock: milliseconds since the Unix epoch (0 if the clock is before 1970).
+pub fn now_ms() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map(|d| d.as_millis() as u64)

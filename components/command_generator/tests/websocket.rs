@@ -192,3 +192,70 @@ async fn the_token_and_the_origin_are_enforced() {
         .insert("origin", format!("http://{addr}").parse().unwrap());
     assert!(tokio_tungstenite::connect_async(req).await.is_ok());
 }
+
+/// `coach/status` at 20 Hz reaches a page at most at its rate (4 a second), in the page's shape,
+/// the latest value winning; `hello` carries the clock and staleness the page needs.
+#[tokio::test]
+async fn the_coach_status_reaches_the_page_throttled_and_latest_first() {
+    use command_generator::coach_status::{STALE_AFTER_MS, view};
+    use command_generator::component::STATE_RATES;
+    use interfaces::msg::nao::CoachStatus;
+
+    let (hub, _rx) = Hub::new(Arc::default(), None);
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server_hub = hub.clone();
+    tokio::spawn(async move { axum::serve(listener, router(server_hub)).await });
+    let (mut ws, _) = tokio_tungstenite::connect_async(format!("ws://{addr}/ws"))
+        .await
+        .unwrap();
+    let hello = next_of(&mut ws, "hello").await;
+    assert_eq!(hello["stale_after_ms"], STALE_AFTER_MS);
+    assert!(hello["server_time_ms"].as_u64().unwrap() > 1_600_000_000_000);
+
+    let hz = STATE_RATES
+        .iter()
+        .find(|(t, _)| *t == "coach/status")
+        .expect("a rate for coach/status")
+        .1;
+    assert!(hz <= 5.0, "a few updates a second at most, not {hz}");
+    let every = Duration::from_secs_f64(1.0 / hz);
+    let publisher = {
+        let hub = hub.clone();
+        tokio::spawn(async move {
+            for seq in 0..=40u64 {
+                let mut s = CoachStatus {
+                    state: "coach/playing".into(),
+                    ball_last_seen_s: seq as f64 / 10.0,
+                    obstacle_last_seen_s: -1.0,
+                    ..Default::default()
+                };
+                s.header.seq = seq;
+                let json = serde_json::to_string(&view(&s, 1)).unwrap();
+                hub.set_state("coach/status", every, json);
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+    };
+    let started = std::time::Instant::now();
+    let mut seen = Vec::new();
+    while started.elapsed() < Duration::from_secs(5) {
+        let m = next_of(&mut ws, "coach_status").await;
+        seen.push((started.elapsed(), m["seq"].as_u64().unwrap()));
+        if m["seq"] == 40 {
+            assert_eq!(m["ball_last_seen_s"], 4.0);
+            assert!(m["obstacle_last_seen_s"].is_null() && m["pending"].is_null());
+            break;
+        }
+    }
+    publisher.await.unwrap();
+    // 41 statuses in about 2 s: the page got about 4 a second, increasing, ending on the latest.
+    assert!(seen.len() >= 3 && seen.len() <= 12, "{seen:?}");
+    assert!(seen.windows(2).all(|w| w[1].1 > w[0].1), "{seen:?}");
+    assert!(
+        seen.windows(2)
+            .all(|w| w[1].0 - w[0].0 >= every - Duration::from_millis(60)),
+        "{seen:?}"
+    );
+    assert_eq!(seen.last().unwrap().1, 40, "{seen:?}");
+}

@@ -19,6 +19,9 @@ const state = {
   ball: null,
   cameraUrl: null,
   said: [],
+  coach: null, // the latest coach_status message
+  clockOffsetMs: 0, // this browser's clock minus the panel's (from hello)
+  staleAfterMs: 3000, // from hello
 };
 const $ = (id) => document.getElementById(id);
 
@@ -65,7 +68,12 @@ window.panel = {
 // ---------- messages ----------
 function handle(m) {
   switch (m.type) {
-    case 'hello': state.catalog = m.catalog; buildButtons(); break;
+    case 'hello':
+      state.catalog = m.catalog; buildButtons();
+      if (Number.isFinite(m.server_time_ms)) state.clockOffsetMs = Date.now() - m.server_time_ms;
+      if (Number.isFinite(m.stale_after_ms)) state.staleAfterMs = m.stale_after_ms;
+      break;
+    case 'coach_status': state.coach = m; renderCoach(); break;
     case 'reply': onReply(m); break;
     case 'history': renderHistory(m.entries); break;
     case 'state': onState(m.topic, m.data); break;
@@ -457,6 +465,37 @@ function drawOverlay() {
   g.fillStyle = '#00e676';
   g.beginPath(); g.arc(b.centre_px[0] * sx, b.centre_px[1] * sy, 3, 0, 2 * Math.PI); g.fill();
 }
+
+// ---------- the coach machine (coach_status) ----------
+// Ages arrive as of the Executive's publication; between updates they keep counting here, and
+// when updates stop for longer than staleAfterMs the block is greyed out and says since when.
+function renderCoach() {
+  const c = state.coach, box = $('coach-status');
+  if (!c) return;
+  const sinceMs = Math.max(0, Date.now() - state.clockOffsetMs - c.received_ms);
+  const stale = sinceMs > state.staleAfterMs;
+  box.classList.toggle('stale', stale);
+  box.dataset.stale = String(stale);
+  box.dataset.seq = c.seq;
+  $('cs-fresh').textContent = stale
+    ? `no coach/status for ${(sinceMs / 1000).toFixed(0)} s: last known values (is the Executive running?)`
+    : `live (update ${c.seq})`;
+  const set = (id, text, cls) => { const e = $(id); e.textContent = text; e.className = cls || ''; };
+  set('cs-state', c.state + (c.game ? ` · game ${c.game}` : ' · no game state yet'), c.state.endsWith('playing') ? 'good' : 'wait');
+  set('cs-link', c.link_up ? 'up' : 'LOST: robot not responding', c.link_up ? 'good' : 'bad');
+  const robot = [c.fallen ? 'fallen' : '', c.penalised ? 'penalised' : ''].filter(Boolean).join(', ');
+  set('cs-robot', robot || 'up', robot ? 'bad' : 'good');
+  set('cs-pending', c.pending ? `${c.pending.label} (${c.pending.source}): waits, ${c.pending.why}` : 'none', c.pending ? 'wait' : '');
+  set('cs-last', c.last ? `${c.last.label}, ${c.last.done ? 'done' : 'in progress'}` : 'none yet', c.last && c.last.done ? 'good' : '');
+  set('cs-answer', c.last_answer ? `“${c.last_answer}”` : '–');
+  const age = (s) => (s === null || s === undefined ? null : s + sinceMs / 1000);
+  const ago = (a) => (a === null ? 'never' : `${a.toFixed(1)} s ago`);
+  const ball = age(c.ball_last_seen_s), obst = age(c.obstacle_last_seen_s);
+  box.dataset.ballAge = ball === null ? '' : ball.toFixed(2);
+  set('cs-ball', ago(ball), ball === null || ball > 5 ? 'bad' : 'good');
+  set('cs-obst', `${ago(obst)} (${c.obstacles_tracked} tracked)`);
+}
+setInterval(renderCoach, 250);
 
 let noticeTimer = null;
 function notice(text, ok) {
