@@ -40,5 +40,6 @@
 //! | every topic | `stats/{rate_hz,latency_ms,thinned,dropped}/<topic>` | Scalars |
 
 pub mod blueprint;
+pub mod component;
 pub mod intake;
 pub mod mapping;
