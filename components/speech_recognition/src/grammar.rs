@@ -412,8 +412,29 @@ impl Grammar {
     }
 }
 
-/// The folder of the grammars shipped with this crate.
+/// The folder of the grammars shipped with this crate: `$ROBOCOG_GRAMMARS` if set; else the
+/// first `components/speech_recognition/grammars` found walking up from the working folder, then
+/// from the executable's folder (a checkout's binaries run from it, or from its `target/`); else
+/// this crate's folder as seen at build time (which another checkout may have removed: loading
+/// a grammar then fails naming the path).
 pub fn grammar_dir() -> PathBuf {
+    if let Some(dir) = std::env::var_os("ROBOCOG_GRAMMARS") {
+        return PathBuf::from(dir);
+    }
+    let starts = [
+        std::env::current_dir().ok(),
+        std::env::current_exe()
+            .ok()
+            .and_then(|e| e.parent().map(Path::to_path_buf)),
+    ];
+    for start in starts.into_iter().flatten() {
+        for dir in start.ancestors() {
+            let p = dir.join("components/speech_recognition/grammars");
+            if p.is_dir() {
+                return p;
+            }
+        }
+    }
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("grammars")
 }
 

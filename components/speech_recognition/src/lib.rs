@@ -2,7 +2,9 @@
 //!
 //! Audio is a continuous 16 000 Hz mono signed 16-bit stream. The end-pointer ([`vad`]) cuts
 //! utterances out of it; each is decoded by PocketSphinx (the Debian `pocketsphinx-en-us` model)
-//! twice: constrained by the game's JSGF grammar ([`grammar`], files in `grammars/`), and by a
+//! twice, both searches fed while the person still speaks so that only the end of the search
+//! remains after the end-pointer's cut: constrained by the game's JSGF grammar ([`grammar`], files
+//! in `grammars/`), and by a
 //! loop of filler words that stands for anything else (the garbage model, [`garbage`]). The
 //! posterior of the command against the garbage path is the confidence ([`confidence`]). The
 //! transcription is mapped to a command of the catalog (`interfaces::msg::command`), or marked
@@ -10,8 +12,14 @@
 //!
 //! The component (`src/main.rs`) reads `audio/in` (or `--wav FILE`) and publishes
 //! `speech/utterance`.
+//!
+//! Opt-in (`--denoise`, `--noise-robust`): a Wiener filter ([`denoise`]) lowers the background
+//! noise before decoding, its estimate taken from the quiet just before the speech, and the
+//! decoder runs with wider beams and without its own voice detection. Better in noise, but the
+//! confidence is not recalibrated for them yet (BENCHMARKS.md, speech).
 
 pub mod confidence;
+pub mod denoise;
 pub mod garbage;
 pub mod grammar;
 pub mod recognizer;

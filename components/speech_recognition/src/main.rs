@@ -43,6 +43,14 @@ struct Args {
     /// Confidence: garbage penalty in nats per 10 ms frame (larger favours the commands).
     #[arg(long, default_value_t = ConfidenceConfig::default().garbage_penalty)]
     garbage_penalty: f64,
+    /// Noise settings for the decoder (wider beams, no PocketSphinx voice detection): better
+    /// commands in noise, but some clean answers get lower confidence (see BENCHMARKS.md).
+    #[arg(long)]
+    noise_robust: bool,
+    /// Remove background noise before decoding (Wiener filter, noise taken from the quiet
+    /// before each utterance). Same caveat as `--noise-robust`.
+    #[arg(long)]
+    denoise: bool,
     /// Filler words of the garbage model that catches out-of-grammar speech, one per line
     /// (default: the shipped `grammars/filler.words`).
     #[arg(long)]
@@ -97,6 +105,10 @@ fn main() -> ExitCode {
                     .clone()
                     .unwrap_or_else(speech_recognition::garbage::filler_file),
             ),
+            noise_robust: args.noise_robust,
+            denoise: args
+                .denoise
+                .then(speech_recognition::denoise::DenoiseConfig::default),
             ..RecognizerConfig::default()
         };
         Ok(Recognizer::new(game, &grammar, cfg)?)

@@ -46,7 +46,7 @@ impl Default for VadConfig {
             min_level_dbfs: -65.0,
             start_frames: 4,
             preroll_s: 0.25,
-            hangover_s: 0.3,
+            hangover_s: 0.25,
             tail_s: 0.2,
             min_speech_s: 0.12,
             max_utterance_s: 8.0,
@@ -64,6 +64,9 @@ pub struct Segment {
     pub samples: Vec<i16>,
     /// Cut at `max_utterance_s` rather than ended by silence.
     pub forced: bool,
+    /// Samples at the start that were heard before the speech started (the pre-roll without its
+    /// loud frames): background, usable as a noise estimate.
+    pub lead_len: usize,
 }
 
 impl Segment {
@@ -83,6 +86,7 @@ struct Open {
     last_loud_len: usize,
     loud_frames: usize,
     quiet_frames: usize,
+    lead_len: usize,
 }
 
 /// The end-pointer; feed it any chunk sizes.
@@ -138,6 +142,18 @@ impl Vad {
         self.open.is_some()
     }
 
+    /// The utterance under way, if any: its first stream sample and the samples of it that will
+    /// certainly be part of the cut segment (up to the last loud frame plus `tail_s`; later
+    /// samples belong to it only if speech resumes). A recognizer can decode these while the
+    /// person still speaks; the segment that [`Vad::push`] returns at the end starts with them.
+    /// Also the length of its background lead ([`Segment::lead_len`]).
+    pub fn open_prefix(&self) -> Option<(u64, &[i16], usize)> {
+        let open = self.open.as_ref()?;
+        let keep =
+            (open.last_loud_len + Self::frames(self.cfg.tail_s) * FRAME).min(open.samples.len());
+        Some((open.start_sample, &open.samples[..keep], open.lead_len))
+    }
+
     /// The current noise floor estimate (dBFS).
     pub fn floor_dbfs(&self) -> Option<f64> {
         self.floor_db
@@ -188,6 +204,7 @@ impl Vad {
             end_sample: open.start_sample + open.samples.len() as u64,
             samples: open.samples,
             forced,
+            lead_len: open.lead_len,
         })
     }
 
@@ -233,8 +250,10 @@ impl Vad {
                     let frames: Vec<Vec<i16>> = self.history.drain(..).collect();
                     let start_sample = self.pos + FRAME as u64 - (frames.len() * FRAME) as u64;
                     let samples: Vec<i16> = frames.concat();
+                    let lead_len = samples.len().saturating_sub(self.loud_run * FRAME);
                     self.open = Some(Open {
                         start_sample,
+                        lead_len,
                         last_loud_len: samples.len(),
                         samples,
                         loud_frames: self.loud_run,

@@ -24,7 +24,8 @@ pub struct DecoderConfig {
     pub dict: PathBuf,
     /// Phone language model of the phone-loop search.
     pub phone_lm: PathBuf,
-    /// Where PocketSphinx writes its log (it is chatty); read back on errors.
+    /// Where PocketSphinx writes its log (it is chatty); read back on errors, removed when the
+    /// decoder is dropped or fails to start (its errors are in the returned error).
     pub log_file: PathBuf,
     /// More `-name value` options for the decoder (beams, weights).
     pub extra_args: Vec<(String, String)>,
@@ -34,14 +35,18 @@ pub struct DecoderConfig {
 }
 
 impl DecoderConfig {
-    /// The Debian model, logging into the temp folder.
+    /// The Debian model, logging into a file of the temp folder unique to this decoder
+    /// configuration (removed when the decoder is dropped).
     pub fn debian() -> Self {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let m = Path::new(DEBIAN_MODEL_DIR);
         Self {
             hmm_dir: m.join("en-us"),
             dict: m.join("cmudict-en-us.dict"),
             phone_lm: m.join("en-us-phone.lm.bin"),
-            log_file: std::env::temp_dir().join(format!("pocketsphinx-{}.log", std::process::id())),
+            log_file: std::env::temp_dir()
+                .join(format!("pocketsphinx-{}-{n}.log", std::process::id())),
             extra_args: Vec::new(),
             nbest: NBEST,
         }
@@ -188,9 +193,9 @@ impl Decoder {
         let ps = unsafe { sys::ps_init(cfg) };
         unsafe { sys::cmd_ln_free_r(cfg) };
         if ps.is_null() {
-            return Err(DecoderError::Init {
-                log: log_tail(&config.log_file),
-            });
+            let log = log_tail(&config.log_file);
+            let _ = std::fs::remove_file(&config.log_file);
+            return Err(DecoderError::Init { log });
         }
         let mut me = Decoder {
             ps,
@@ -218,6 +223,9 @@ impl Decoder {
                 me.phones_only = true;
             }
         }
+        // Started: errors from now on do not read the log, so it goes now (PocketSphinx keeps
+        // writing to the open, unlinked file). A process that is killed leaves nothing behind.
+        let _ = std::fs::remove_file(&me.log_file);
         Ok(me)
     }
 
@@ -241,9 +249,18 @@ impl Decoder {
         samples: &[i16],
         want_posterior: bool,
     ) -> Result<Hypothesis, DecoderError> {
+        self.start_search(search)?;
+        // In blocks, as a live stream would come (`full_utt` batch mode is much slower in
+        // this version and no more accurate on short commands).
+        for block in samples.chunks(BLOCK) {
+            self.feed(block)?;
+        }
+        self.finish_search(want_posterior)
+    }
+
+    fn start_search(&mut self, search: &str) -> Result<(), DecoderError> {
         let name = cstring(search)?;
-        // SAFETY: valid decoder; samples is a live slice of the given length; the hypothesis
-        // string is copied before the next call into the decoder.
+        // SAFETY: valid decoder and C string.
         unsafe {
             if sys::ps_set_search(self.ps, name.as_ptr()) < 0 {
                 return Err(DecoderError::Decode("ps_set_search"));
@@ -251,14 +268,44 @@ impl Decoder {
             if sys::ps_start_utt(self.ps) < 0 {
                 return Err(DecoderError::Decode("ps_start_utt"));
             }
-            // In blocks, as a live stream would come (`full_utt` batch mode is much slower in
-            // this version and no more accurate on short commands).
-            for block in samples.chunks(BLOCK) {
-                if sys::ps_process_raw(self.ps, block.as_ptr(), block.len(), 0, 0) < 0 {
-                    let _ = sys::ps_end_utt(self.ps);
-                    return Err(DecoderError::Decode("ps_process_raw"));
-                }
+        }
+        Ok(())
+    }
+
+    /// Start an utterance that is fed as it arrives ([`Decoder::feed`]) and ended by
+    /// [`Decoder::finish`]: the search runs while the person still speaks, so only the final
+    /// step remains after the end of speech.
+    pub fn start(&mut self) -> Result<(), DecoderError> {
+        self.start_search(if self.phones_only {
+            PHONE_SEARCH
+        } else {
+            GRAMMAR_SEARCH
+        })
+    }
+
+    /// Feed samples of the utterance begun by [`Decoder::start`].
+    pub fn feed(&mut self, samples: &[i16]) -> Result<(), DecoderError> {
+        for block in samples.chunks(BLOCK) {
+            // SAFETY: valid decoder in an utterance; block is a live slice of that length.
+            if unsafe { sys::ps_process_raw(self.ps, block.as_ptr(), block.len(), 0, 0) } < 0 {
+                // SAFETY: as above; ends the utterance so the decoder can start another.
+                let _ = unsafe { sys::ps_end_utt(self.ps) };
+                return Err(DecoderError::Decode("ps_process_raw"));
             }
+        }
+        Ok(())
+    }
+
+    /// End the utterance begun by [`Decoder::start`] and read its hypothesis.
+    pub fn finish(&mut self) -> Result<Hypothesis, DecoderError> {
+        let p = !self.phones_only;
+        self.finish_search(p)
+    }
+
+    fn finish_search(&mut self, want_posterior: bool) -> Result<Hypothesis, DecoderError> {
+        // SAFETY: valid decoder in an utterance; the hypothesis string is copied before the next
+        // call into the decoder.
+        unsafe {
             if sys::ps_end_utt(self.ps) < 0 {
                 return Err(DecoderError::Decode("ps_end_utt"));
             }
@@ -335,5 +382,6 @@ impl Drop for Decoder {
         unsafe {
             sys::ps_free(self.ps);
         }
+        let _ = std::fs::remove_file(&self.log_file);
     }
 }

@@ -1,0 +1,142 @@
+#![allow(clippy::unwrap_used)]
+//! Where the recognition errors come from (tuning aid): every command of a game said by a set of
+//! voices at given SNRs, each error classified as an end-pointer error (not exactly one
+//! utterance cut), a decoding error (one utterance, wrong words) or a confidence rejection (right
+//! words, rejected as out of grammar). `speech_errors <touch|coach> <tune|eval> <snr>...`.
+//! Environment: `PS_ARGS` ("-name value ..." decoder options), `HANGOVER` (end-pointer, s).
+use interfaces::msg::command::{Command, Game};
+use pocketsphinx_sys_min::decoder::DecoderConfig;
+use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
+use speech_generator::synth::{Voice, synthesize_16k};
+use speech_recognition::grammar::{Grammar, grammar_dir};
+use speech_recognition::{Recognizer, RecognizerConfig};
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let game = Game::from_name(&args.next().unwrap()).unwrap();
+    let set = args.next().unwrap();
+    let snrs: Vec<f64> = args.map(|s| s.parse().unwrap()).collect();
+    let voices: &[&str] = if set == "tune" {
+        &["en-gb-x-rp", "en-029", "en-us+m1", "en-gb+f2"]
+    } else {
+        &[
+            "en-us",
+            "en-gb",
+            "en-us+f3",
+            "en-gb-scotland",
+            "en-us+m3",
+            "en-gb+f4",
+        ]
+    };
+    let seed0 = if set == "tune" { 1000 } else { 1 };
+    let mut dc = DecoderConfig::debian();
+    if let Ok(a) = std::env::var("PS_ARGS") {
+        let w: Vec<&str> = a.split_whitespace().collect();
+        for p in w.chunks(2) {
+            dc.extra_args.push((p[0].into(), p[1].into()));
+        }
+    }
+    let mut cfg = RecognizerConfig {
+        noise_robust: std::env::var("ROBUST").as_deref() != Ok("0"),
+        denoise: Some(Default::default()),
+        ..RecognizerConfig::default()
+    };
+    if let Some(h) = std::env::var("HANGOVER").ok().and_then(|s| s.parse().ok()) {
+        cfg.vad.hangover_s = h;
+    }
+    if std::env::var("DENOISE").as_deref() == Ok("0") {
+        cfg.denoise = None;
+    }
+    if let Some(f) = std::env::var("GFLOOR").ok().and_then(|s| s.parse().ok()) {
+        cfg.denoise.as_mut().unwrap().gain_floor = f;
+    }
+    if let Some(f) = std::env::var("OVERSUB").ok().and_then(|s| s.parse().ok()) {
+        cfg.denoise.as_mut().unwrap().over_subtraction = f;
+    }
+    let g = Grammar::load(&grammar_dir().join(format!("{}.gram", game.name()))).unwrap();
+    let mut rec = Recognizer::with_grammar(game, g, cfg, &dc).unwrap();
+    for snr in snrs {
+        let (mut n, mut ok, mut vad, mut dec, mut rej) = (0, 0, 0, 0, 0);
+        let mut lines = vec![];
+        let mut lat: Vec<f64> = vec![];
+        for (vi, v) in voices.iter().enumerate() {
+            for (si, s) in [130u32, 175, 220].iter().enumerate() {
+                let voice = Voice {
+                    voice: v.to_string(),
+                    speed_wpm: *s,
+                    pitch: 35 + 10 * si as u8,
+                };
+                for c in Command::of_game(game) {
+                    for ph in c.phrases() {
+                        let speech = synthesize_16k(ph, &voice).unwrap();
+                        let a = mix_at_snr(
+                            &speech,
+                            snr,
+                            NoiseKind::White,
+                            0.6,
+                            0.8,
+                            &mut NoiseRng::new(seed0 + (vi * 7 + si) as u64),
+                        );
+                        let end = 0.6
+                            + speech
+                                .iter()
+                                .rposition(|x| x.unsigned_abs() > 300)
+                                .unwrap_or(0) as f64
+                                / 16000.0;
+                        let mut got = vec![];
+                        let mut pos = 0;
+                        for chunk in a.chunks(if std::env::var("WHOLE").is_ok() {
+                            a.len()
+                        } else {
+                            320
+                        }) {
+                            pos += chunk.len();
+                            let t = std::time::Instant::now();
+                            let r = rec.push(chunk).unwrap();
+                            if !r.is_empty() {
+                                lat.push(pos as f64 / 16000.0 - end + t.elapsed().as_secs_f64());
+                            }
+                            got.extend(r);
+                        }
+                        got.extend(rec.flush().unwrap());
+                        n += 1;
+                        let kind = if got.len() != 1 {
+                            vad += 1;
+                            "vad"
+                        } else if Command::from_phrase(game, &got[0].text) != c {
+                            dec += 1;
+                            "decode"
+                        } else if got[0].command != c {
+                            rej += 1;
+                            "reject"
+                        } else {
+                            ok += 1;
+                            continue;
+                        };
+                        lines.push(format!(
+                            "  {kind:6} {v} {s} {ph:?} -> {:?}",
+                            got.iter()
+                                .map(|r| format!(
+                                    "{:?} p={:.2} {:.2}-{:.2}s",
+                                    r.text, r.p_in_grammar, r.start_s, r.end_s
+                                ))
+                                .collect::<Vec<_>>()
+                        ));
+                    }
+                }
+            }
+        }
+        if std::env::var("VERBOSE").is_ok() {
+            for l in &lines {
+                println!("{l}");
+            }
+        }
+        lat.sort_by(f64::total_cmp);
+        println!(
+            "{game:?} {set} SNR {snr}: {ok}/{n} = {:.3}; end-pointer {vad}, decoding {dec}, rejected {rej}; end of speech to result p50 {:.3} s p90 {:.3} s",
+            ok as f64 / n as f64,
+            lat.get(lat.len() / 2).copied().unwrap_or(f64::NAN),
+            lat.get(lat.len() * 9 / 10).copied().unwrap_or(f64::NAN),
+        );
+    }
+}
