@@ -41,7 +41,23 @@ need_nextest() {
   fi
 }
 
+# The release profile builds incrementally (quick rebuilds of the workspace crates), and cargo
+# never trims the incremental caches: each checkout path adds its own. Past this size they are
+# removed before a build (the next build of the workspace crates is then a full one).
+INCREMENTAL_MAX_GB="${ROBOCOG_INCREMENTAL_MAX_GB:-8}"
+
+prune_incremental() {
+  local dir="$CARGO_TARGET_DIR/release/incremental" gb
+  [ -d "$dir" ] || return 0
+  gb=$(( $(du -sk "$dir" | cut -f1) / 1024 / 1024 ))
+  if [ "$gb" -gt "$INCREMENTAL_MAX_GB" ]; then
+    step "removing $gb GB of incremental build caches (over ${INCREMENTAL_MAX_GB} GB) in $dir"
+    rm -rf "$dir"
+  fi
+}
+
 build_all() {
+  prune_incremental
   step "building every robocog binary (release, into $CARGO_TARGET_DIR)"
   (cd "$ROOT" && cargo build --release --workspace --bins --examples)
 }
