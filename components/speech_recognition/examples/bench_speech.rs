@@ -2,7 +2,8 @@
 //! Speech recognition benchmark: every command of both games (touch the ball, the Nao coach),
 //! said by 6 espeak-ng voices at 3 speeds (and pitches), clean and mixed with white noise at 20,
 //! 10 and 5 dB SNR, plus out-of-grammar sentences, through the recognizer as a live stream (20 ms
-//! chunks: end-pointer, enhancement, both searches fed while the person speaks).
+//! chunks: end-pointer, both searches fed while the person speaks; with `--noise-settings` also
+//! the enhancement and the decoder's noise options, otherwise the component's defaults).
 //!
 //! Figures per game and SNR: command accuracy (the right command, not rejected), the errors split
 //! by cause (the end-pointer did not cut exactly one utterance / one utterance but wrong words /
@@ -90,6 +91,15 @@ fn snr_name(snr: f64) -> String {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
+    let noise_settings = args.iter().any(|a| a == "--noise-settings");
+    println!(
+        "configuration: {}",
+        if noise_settings {
+            "opt-in noise settings (--noise-robust --denoise)"
+        } else {
+            "the component's default"
+        }
+    );
     let wav_dir = args
         .iter()
         .position(|a| a == "--write-wav")
@@ -105,11 +115,16 @@ fn main() {
     let mut json: Vec<String> = vec![];
     let (mut all_ok10, mut all_n10) = (0, 0);
     for game in Game::ALL {
-        // The opt-in noise settings: the decoder's and the enhancement (see `RecognizerConfig`).
-        let cfg = RecognizerConfig {
-            noise_robust: true,
-            denoise: Some(Default::default()),
-            ..RecognizerConfig::default()
+        // The component's default configuration, or with `--noise-settings` the opt-in noise
+        // settings: the decoder's and the enhancement (see `RecognizerConfig`).
+        let cfg = if noise_settings {
+            RecognizerConfig {
+                noise_robust: true,
+                denoise: Some(Default::default()),
+                ..RecognizerConfig::default()
+            }
+        } else {
+            RecognizerConfig::default()
         };
         let mut rec = Recognizer::shipped(game, cfg).unwrap();
         // The clean speech of every (voice, speed, command), synthesized once.
