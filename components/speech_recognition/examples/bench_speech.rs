@@ -23,9 +23,12 @@
 
 use interfaces::msg::command::{Command, Game};
 use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::{Voice, synthesize_16k};
+use speech_generator::synth::synthesize_16k;
 use speech_generator::wav::{Pcm, encode};
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
+
+mod corpus;
+use corpus::{EVAL_VOICES as VOICES, SPEEDS, voice};
 
 const OOG: &[&str] = &[
     "what a lovely day it is today",
@@ -42,15 +45,6 @@ const OOG: &[&str] = &[
     "how old are you",
 ];
 
-const VOICES: [&str; 6] = [
-    "en-us",
-    "en-gb",
-    "en-us+f3",
-    "en-gb-scotland",
-    "en-us+m3",
-    "en-gb+f4",
-];
-const SPEEDS: [u32; 3] = [130, 175, 220];
 const SNRS: [f64; 4] = [f64::INFINITY, 20.0, 10.0, 5.0];
 const HIGH: f64 = 0.7;
 const CHUNK: usize = 320;
@@ -130,12 +124,8 @@ fn main() {
         // The clean speech of every (voice, speed, command), synthesized once.
         let mut said = vec![];
         for (vi, v) in VOICES.iter().enumerate() {
-            for (si, s) in SPEEDS.iter().enumerate() {
-                let voice = Voice {
-                    voice: v.to_string(),
-                    speed_wpm: *s,
-                    pitch: 35 + 10 * si as u8,
-                };
+            for si in 0..SPEEDS.len() {
+                let voice = voice(v, si);
                 for c in Command::of_game(game) {
                     let speech = synthesize_16k(c.phrase(), &voice).unwrap();
                     said.push((vi, si, c, speech));
@@ -221,9 +211,9 @@ fn main() {
         let (mut fa, mut n_oog, mut asked) = (0, 0, 0);
         for (i, s) in OOG.iter().enumerate() {
             for v in VOICES {
-                let voice = Voice {
+                let voice = speech_generator::synth::Voice {
                     voice: v.to_string(),
-                    ..Voice::default()
+                    ..Default::default()
                 };
                 let speech = synthesize_16k(s, &voice).unwrap();
                 let a = mix_at_snr(

@@ -7,9 +7,12 @@
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
 use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::{Voice, synthesize_16k};
+use speech_generator::synth::synthesize_16k;
 use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig};
+
+mod corpus;
+use corpus::{EVAL_VOICES, SPEEDS, TUNE_VOICES, voice};
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -17,16 +20,9 @@ fn main() {
     let set = args.next().unwrap();
     let snrs: Vec<f64> = args.map(|s| s.parse().unwrap()).collect();
     let voices: &[&str] = if set == "tune" {
-        &["en-gb-x-rp", "en-029", "en-us+m1", "en-gb+f2"]
+        &TUNE_VOICES
     } else {
-        &[
-            "en-us",
-            "en-gb",
-            "en-us+f3",
-            "en-gb-scotland",
-            "en-us+m3",
-            "en-gb+f4",
-        ]
+        &EVAL_VOICES
     };
     let seed0 = if set == "tune" { 1000 } else { 1 };
     let mut dc = DecoderConfig::debian();
@@ -60,12 +56,8 @@ fn main() {
         let mut lines = vec![];
         let mut lat: Vec<f64> = vec![];
         for (vi, v) in voices.iter().enumerate() {
-            for (si, s) in [130u32, 175, 220].iter().enumerate() {
-                let voice = Voice {
-                    voice: v.to_string(),
-                    speed_wpm: *s,
-                    pitch: 35 + 10 * si as u8,
-                };
+            for (si, s) in SPEEDS.iter().enumerate() {
+                let voice = voice(v, si);
                 for c in Command::of_game(game) {
                     for ph in c.phrases() {
                         let speech = synthesize_16k(ph, &voice).unwrap();
