@@ -160,6 +160,33 @@ async fn wait_until_quiet(says: &Log<SayRequest>, speaking: &Log<SpeakingEvent>)
     tokio::time::sleep(Duration::from_millis(700)).await;
 }
 
+/// `launch/nao_coach.toml` in namespace `ns` on free UDP ports, without the panel and without
+/// random falls, plus `sets` (`var=value`); returns once each of `components` is up.
+fn launch_coach(ns: &str, sets: &[String], components: &[&str]) -> Launch {
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/nao_coach.toml");
+    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let base = [
+        format!("debug_port={debug}"),
+        format!("gc_port={gc}"),
+        format!("command_port={cmd}"),
+        "panel=false".into(),
+        "falls_per_min=0".into(),
+    ];
+    let mut extra = Vec::new();
+    for s in base.iter().chain(sets) {
+        extra.push("--set");
+        extra.push(s.as_str());
+    }
+    let launch = Launch::start(&manifest, ns, &extra);
+    for who in components {
+        launch.lines.wait_for(who, Duration::from_secs(40), |l| {
+            l.contains(&format!("{who} is up"))
+        });
+    }
+    launch
+}
+
 fn said(log: &Log<SayRequest>) -> Vec<String> {
     log.all().into_iter().map(|s| s.text).collect()
 }
@@ -167,37 +194,21 @@ fn said(log: &Log<SayRequest>) -> Vec<String> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_scripted_attempt_with_voice_and_bus_commands() {
     let ns = unique_namespace("coach");
-    let manifest =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/nao_coach.toml");
-    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
-    let sets = [
-        format!("debug_port={debug}"),
-        format!("gc_port={gc}"),
-        format!("command_port={cmd}"),
-        "panel=false".into(),
-        "time_scale=2".into(),
-        // 10 s of INITIAL, READY and SET each (5 s of real time each).
-        "pre_game_s=30".into(),
-        "falls_per_min=0".into(),
-        // The opponents stand still (obstacles only) unless ROBOCOG_COACH_OPPONENTS=active: with
-        // them playing, the defender often takes the ball, and the goal is not reliable.
-        format!(
-            "passive_opponents={}",
-            std::env::var("ROBOCOG_COACH_OPPONENTS").map_or(true, |v| v != "active")
-        ),
-    ];
-    let mut extra = Vec::new();
-    for s in &sets {
-        extra.push("--set");
-        extra.push(s.as_str());
-    }
-    let launch = Launch::start(&manifest, &ns, &extra);
-    let up = Duration::from_secs(40);
-    for who in ["nao_bridge", "executive", "speech_recognition", "dialogs"] {
-        launch
-            .lines
-            .wait_for(who, up, |l| l.contains(&format!("{who} is up")));
-    }
+    let launch = launch_coach(
+        &ns,
+        &[
+            "time_scale=2".into(),
+            // 10 s of INITIAL, READY and SET each (5 s of real time each).
+            "pre_game_s=30".into(),
+            // The opponents stand still (obstacles only) unless ROBOCOG_COACH_OPPONENTS=active:
+            // with them playing, the defender often takes the ball, and the goal is not reliable.
+            format!(
+                "passive_opponents={}",
+                std::env::var("ROBOCOG_COACH_OPPONENTS").map_or(true, |v| v != "active")
+            ),
+        ],
+        &["nao_bridge", "executive", "speech_recognition", "dialogs"],
+    );
     let bus = Bus::open(&launch.connect_args(), "test-coach")
         .await
         .unwrap();
@@ -541,31 +552,16 @@ async fn a_scripted_attempt_with_voice_and_bus_commands() {
 async fn a_lost_link_and_a_penalty_interrupt_and_resume_the_command() {
     use interfaces::msg::nao::{LinkChange, NaoLinkEvent};
     let ns = unique_namespace("coach-interrupt");
-    let manifest =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/nao_coach.toml");
-    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
-    let sets = [
-        format!("debug_port={debug}"),
-        format!("gc_port={gc}"),
-        format!("command_port={cmd}"),
-        "panel=false".into(),
-        "pre_game_s=6".into(),
-        "falls_per_min=0".into(),
-        "passive_opponents=true".into(),
-        "penalty_at_s=4".into(),
-        "penalty_s=5".into(),
-    ];
-    let mut extra = Vec::new();
-    for s in &sets {
-        extra.push("--set");
-        extra.push(s.as_str());
-    }
-    let launch = Launch::start(&manifest, &ns, &extra);
-    for who in ["nao_bridge", "executive"] {
-        launch.lines.wait_for(who, Duration::from_secs(40), |l| {
-            l.contains(&format!("{who} is up"))
-        });
-    }
+    let launch = launch_coach(
+        &ns,
+        &[
+            "pre_game_s=6".into(),
+            "passive_opponents=true".into(),
+            "penalty_at_s=4".into(),
+            "penalty_s=5".into(),
+        ],
+        &["nao_bridge", "executive"],
+    );
     let bus = Bus::open(&launch.connect_args(), "test-coach-interrupt")
         .await
         .unwrap();
