@@ -30,7 +30,18 @@ need_debs() {
 # The voice components' system packages: PocketSphinx (library, headers, US English model, CLI
 # for the benchmark's comparison), espeak-ng (the speech generator and the test voices), sox.
 need_voice_debs() {
-  need_debs libpocketsphinx-dev pocketsphinx-en-us pocketsphinx espeak-ng libespeak-ng-dev sox
+  need_debs libpocketsphinx-dev pocketsphinx-en-us pocketsphinx espeak-ng libespeak-ng-dev sox \
+    sphinxtrain sphinxbase-utils
+}
+
+# The adapted acoustic model the speech recognizer prefers (components/speech_recognition,
+# `speech_model`): built into ~/.cache/robocog/speech/ when missing or when its recipe changed
+# (about 3 minutes on two cores), otherwise left alone. Needs build_all first.
+need_speech_model() {
+  if ! "$BIN/speech_model" --check >/dev/null 2>&1; then
+    step "adapting the speech recognizer's acoustic model to noisy speech (speech_model, ~3 min)"
+    "$BIN/speech_model"
+  fi
 }
 
 # Make sure cargo-nextest is there (the machine image ships it; install it otherwise).

@@ -2,8 +2,9 @@
 //! Speech recognition benchmark: every command of both games (touch the ball, the Nao coach),
 //! said by 6 espeak-ng voices at 3 speeds (and pitches), clean and mixed with white noise at 20,
 //! 10 and 5 dB SNR, plus out-of-grammar sentences, through the recognizer as a live stream (20 ms
-//! chunks: end-pointer, both searches fed while the person speaks; with `--noise-settings` also
-//! the enhancement and the decoder's noise options, otherwise the component's defaults).
+//! chunks: end-pointer, both searches fed while the person speaks), in the component's default
+//! configuration: the adapted acoustic model when it is built (`--acoustic-model DIR|stock` to
+//! choose), `--denoise` to add the enhancement.
 //!
 //! Figures per game and SNR: command accuracy (the right command, not rejected), the errors split
 //! by cause (the end-pointer did not cut exactly one utterance / one utterance but wrong words /
@@ -14,8 +15,11 @@
 //! the processing of that chunk.
 //!
 //! Evaluation set only: these 6 voices and noise seeds 1.. were not used to tune anything; the
-//! tuning (PocketSphinx options, enhancement, end-pointer hangover) used other voices (en-gb-x-rp,
-//! en-029, en-us+m1, en-gb+f2) and noise seeds from 1000 (`examples/speech_errors.rs tune`).
+//! tuning (PocketSphinx options, enhancement, end-pointer, confidence calibration) used other
+//! voices (en-gb-x-rp, en-029, en-us+m1, en-gb+f2) and noise seeds from 1000
+//! (`examples/speech_errors.rs tune`), and the acoustic model's adaptation corpus yet other
+//! voices (`speech_recognition::adapt::VOICES`, checked here). All are espeak-ng voices, so the
+//! adapted model knows espeak-ng's speech: the figures are for the simulated person.
 //!
 //! With `--write-wav DIR` every test utterance is also written as `<n>.wav`, with
 //! `<n> <game> <snr> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
@@ -25,6 +29,7 @@ use interfaces::msg::command::{Command, Game};
 use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
 use speech_generator::synth::synthesize_16k;
 use speech_generator::wav::{Pcm, encode};
+use speech_recognition::model::AcousticModel;
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
 mod corpus;
@@ -85,14 +90,24 @@ fn snr_name(snr: f64) -> String {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let noise_settings = args.iter().any(|a| a == "--noise-settings");
+    let denoise = args.iter().any(|a| a == "--denoise");
+    let model_arg = args
+        .iter()
+        .position(|a| a == "--acoustic-model")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
+    let model = AcousticModel::resolve(model_arg.as_deref()).unwrap();
+    // The adaptation corpus never says a word in an evaluation or tuning voice.
+    for v in speech_recognition::adapt::VOICES {
+        assert!(
+            !VOICES.contains(&v) && !corpus::TUNE_VOICES.contains(&v),
+            "adaptation voice {v} is an evaluation or tuning voice"
+        );
+    }
     println!(
-        "configuration: {}",
-        if noise_settings {
-            "opt-in noise settings (--noise-robust --denoise)"
-        } else {
-            "the component's default"
-        }
+        "configuration: the component's default{}; acoustic model {}",
+        if denoise { " plus --denoise" } else { "" },
+        model.describe()
     );
     let wav_dir = args
         .iter()
@@ -109,16 +124,12 @@ fn main() {
     let mut json: Vec<String> = vec![];
     let (mut all_ok10, mut all_n10) = (0, 0);
     for game in Game::ALL {
-        // The component's default configuration, or with `--noise-settings` the opt-in noise
-        // settings: the decoder's and the enhancement (see `RecognizerConfig`).
-        let cfg = if noise_settings {
-            RecognizerConfig {
-                noise_robust: true,
-                denoise: Some(Default::default()),
-                ..RecognizerConfig::default()
-            }
-        } else {
-            RecognizerConfig::default()
+        // The component's default configuration (see `RecognizerConfig`), with the chosen
+        // acoustic model and optionally the enhancement.
+        let cfg = RecognizerConfig {
+            denoise: denoise.then(Default::default),
+            acoustic_model: model.clone(),
+            ..RecognizerConfig::default()
         };
         let mut rec = Recognizer::shipped(game, cfg).unwrap();
         // The clean speech of every (voice, speed, command), synthesized once.
@@ -260,12 +271,13 @@ fn main() {
         std::fs::write(d.join("truth.tsv"), truth).unwrap();
     }
     println!(
-        "{{{}, \"accuracy_10db_both\": {:.4}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}}}",
+        "{{{}, \"accuracy_10db_both\": {:.4}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}}}",
         json.join(", "),
         all_ok10 as f64 / all_n10 as f64,
         busy_s / audio_s,
         pct(&lat_all, 0.5),
         pct(&lat_all, 0.9),
-        speech_recognition::vad::VadConfig::default().hangover_s
+        speech_recognition::vad::VadConfig::default().hangover_s,
+        !model.stock
     );
 }

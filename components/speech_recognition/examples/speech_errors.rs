@@ -3,7 +3,10 @@
 //! voices at given SNRs, each error classified as an end-pointer error (not exactly one
 //! utterance cut), a decoding error (one utterance, wrong words) or a confidence rejection (right
 //! words, rejected as out of grammar). `speech_errors <touch|coach> <tune|eval> <snr>...`.
-//! Environment: `PS_ARGS` ("-name value ..." decoder options), `HANGOVER` (end-pointer, s).
+//! Environment: `PS_ARGS` ("-name value ..." decoder options, e.g. `-hmm DIR` for another
+//! acoustic model), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
+//! `ROBUST=0` (PocketSphinx's own noise settings), `DENOISE=1` (the enhancement; `GFLOOR`,
+//! `OVERSUB` tune it), `VERBOSE` (list every error).
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
 use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
@@ -34,22 +37,38 @@ fn main() {
     }
     let mut cfg = RecognizerConfig {
         noise_robust: std::env::var("ROBUST").as_deref() != Ok("0"),
-        denoise: Some(Default::default()),
+        denoise: (std::env::var("DENOISE").as_deref() == Ok("1")).then(Default::default),
         ..RecognizerConfig::default()
     };
     if let Some(h) = std::env::var("HANGOVER").ok().and_then(|s| s.parse().ok()) {
         cfg.vad.hangover_s = h;
     }
-    if std::env::var("DENOISE").as_deref() == Ok("0") {
-        cfg.denoise = None;
+    if let Some(h) = std::env::var("MIN_SPEECH")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        cfg.vad.min_speech_s = h;
+    }
+    if let Some(h) = std::env::var("START_DB").ok().and_then(|s| s.parse().ok()) {
+        cfg.vad.start_db = h;
+    }
+    if let Some(h) = std::env::var("START_FRAMES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        cfg.vad.start_frames = h;
     }
     if let Some(f) = std::env::var("GFLOOR").ok().and_then(|s| s.parse().ok()) {
-        cfg.denoise.as_mut().unwrap().gain_floor = f;
+        cfg.denoise.get_or_insert_with(Default::default).gain_floor = f;
     }
     if let Some(f) = std::env::var("OVERSUB").ok().and_then(|s| s.parse().ok()) {
-        cfg.denoise.as_mut().unwrap().over_subtraction = f;
+        cfg.denoise
+            .get_or_insert_with(Default::default)
+            .over_subtraction = f;
     }
     let g = Grammar::load(&grammar_dir().join(format!("{}.gram", game.name()))).unwrap();
+    // The configured acoustic model (a `-hmm` in `PS_ARGS` wins).
+    dc.hmm_dir = cfg.acoustic_model.dir.clone();
     let mut rec = Recognizer::with_grammar(game, g, cfg, &dc).unwrap();
     for snr in snrs {
         let (mut n, mut ok, mut vad, mut dec, mut rej) = (0, 0, 0, 0, 0);

@@ -74,8 +74,8 @@ impl Default for ConfidenceConfig {
             acoustic_scale: 2.5,
             garbage_penalty: 1.4,
             reject_below: 0.3,
-            snr_slope_per_db: 0.155,
-            snr_mid_db: 3.5,
+            snr_slope_per_db: 0.25,
+            snr_mid_db: 2.5,
         }
     }
 }

@@ -54,6 +54,56 @@ pub fn filler_file() -> PathBuf {
     crate::grammar::grammar_dir().join("filler.words")
 }
 
+/// The shipped extra pronunciations of grammar words.
+pub fn pronunciations_file() -> PathBuf {
+    crate::grammar::grammar_dir().join("pronunciations.dict")
+}
+
+/// Extra pronunciations (`word PH O N ES` per line, `#` comments) as `(word, phones)` for the
+/// decoder: a word the dictionary has becomes its next alternative (`word(2)`, ...); one it
+/// has with the same phones is skipped; a new word is added as it is.
+pub fn load_pronunciations(
+    path: &Path,
+    dict: &Dictionary,
+) -> Result<Vec<(String, String)>, GarbageError> {
+    let text = std::fs::read_to_string(path).map_err(|e| GarbageError::Dict {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut out: Vec<(String, String)> = Vec::new();
+    let mut added: HashMap<String, usize> = HashMap::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        let mut it = line.split_whitespace();
+        let Some(word) = it.next() else { continue };
+        let word = word.to_lowercase();
+        let phones: Vec<&str> = it.collect();
+        if phones.is_empty() || word.contains('(') {
+            return Err(GarbageError::Dict {
+                file: path.to_path_buf(),
+                message: format!(
+                    "line {}: want `word PH O N ES` (no `(2)`: alternatives are numbered here), got {line:?}",
+                    i + 1
+                ),
+            });
+        }
+        let phones = phones.join(" ").to_uppercase();
+        let known = dict.pronunciations(&word);
+        if known.contains(&phones) {
+            continue;
+        }
+        let n = added.entry(word.clone()).or_insert(known.len());
+        *n += 1;
+        let name = if *n == 1 {
+            word
+        } else {
+            format!("{word}({n})")
+        };
+        out.push((name, phones));
+    }
+    Ok(out)
+}
+
 /// A pronunciation dictionary: word (lowercase) to its pronunciations (phone strings).
 #[derive(Debug, Default)]
 pub struct Dictionary {
@@ -83,7 +133,8 @@ impl Dictionary {
         self.prons.contains_key(word)
     }
 
-    fn pronunciations(&self, word: &str) -> &[String] {
+    /// The word's pronunciations (phone strings), none when it is not in the dictionary.
+    pub fn pronunciations(&self, word: &str) -> &[String] {
         self.prons.get(word).map(Vec::as_slice).unwrap_or(&[])
     }
 }

@@ -18,10 +18,12 @@
 //! decoder runs with wider beams and without its own voice detection. Better in noise, but the
 //! confidence is not recalibrated for them yet (BENCHMARKS.md, speech).
 
+pub mod adapt;
 pub mod confidence;
 pub mod denoise;
 pub mod garbage;
 pub mod grammar;
+pub mod model;
 pub mod recognizer;
 pub mod vad;
 

@@ -9,6 +9,7 @@ use interfaces::msg::speech::Utterance;
 use interfaces::node::{self, Interface, NodeArgs};
 use interfaces::topics;
 use speech_recognition::confidence::ConfidenceConfig;
+use speech_recognition::model::{AcousticModel, adapted_model_dir};
 use speech_recognition::vad::{RATE_HZ, VadConfig};
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 use std::path::PathBuf;
@@ -43,14 +44,19 @@ struct Args {
     /// Confidence: garbage penalty in nats per 10 ms frame (larger favours the commands).
     #[arg(long, default_value_t = ConfidenceConfig::default().garbage_penalty)]
     garbage_penalty: f64,
-    /// Noise settings for the decoder (wider beams, no PocketSphinx voice detection): better
-    /// commands in noise, but some clean answers get lower confidence (see BENCHMARKS.md).
-    #[arg(long)]
+    /// Noise settings for the decoder: wider beams, no PocketSphinx voice detection (the
+    /// end-pointer's cut is decoded whole). `--noise-robust false` for PocketSphinx's defaults.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     noise_robust: bool,
     /// Remove background noise before decoding (Wiener filter, noise taken from the quiet
-    /// before each utterance). Same caveat as `--noise-robust`.
+    /// before each utterance). Off by default: the acoustic model is not adapted to its output.
     #[arg(long)]
     denoise: bool,
+    /// Acoustic model: a PocketSphinx model folder, or `stock` (Debian's en-us). Default:
+    /// `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model built by `speech_model` when there is
+    /// one, else the stock model.
+    #[arg(long, value_name = "DIR|stock")]
+    acoustic_model: Option<String>,
     /// Filler words of the garbage model that catches out-of-grammar speech, one per line
     /// (default: the shipped `grammars/filler.words`).
     #[arg(long)]
@@ -89,7 +95,9 @@ fn main() -> ExitCode {
         let grammar = args.grammar.clone().unwrap_or_else(|| {
             speech_recognition::grammar::grammar_dir().join(format!("{}.gram", game.name()))
         });
+        let acoustic_model = AcousticModel::resolve(args.acoustic_model.as_deref())?;
         let cfg = RecognizerConfig {
+            acoustic_model,
             vad: VadConfig {
                 start_db: args.start_db,
                 hangover_s: args.hangover_s,
@@ -130,6 +138,16 @@ fn main() -> ExitCode {
             return Ok(());
         };
         let out = bus.publisher(&topics::SPEECH_UTTERANCE).await?;
+        let model = &recognizer.config().acoustic_model;
+        if model.stock {
+            tracing::warn!(
+                "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
+                model.describe(),
+                adapted_model_dir().display()
+            );
+        } else {
+            tracing::info!("acoustic model: {}", model.describe());
+        }
         tracing::info!(game = recognizer.game().name(), grammar = %recognizer.grammar().origin.display(), "listening");
         if let Some(path) = wav {
             let bytes = std::fs::read(&path)

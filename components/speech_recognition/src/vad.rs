@@ -41,14 +41,14 @@ pub struct VadConfig {
 impl Default for VadConfig {
     fn default() -> Self {
         Self {
-            start_db: 6.0,
+            start_db: 5.0,
             hysteresis_db: 2.0,
             min_level_dbfs: -65.0,
             start_frames: 4,
             preroll_s: 0.25,
             hangover_s: 0.25,
             tail_s: 0.2,
-            min_speech_s: 0.12,
+            min_speech_s: 0.08,
             max_utterance_s: 8.0,
             floor_rise_db_per_s: 2.0,
         }

@@ -29,6 +29,9 @@ pub struct DecoderConfig {
     pub log_file: PathBuf,
     /// More `-name value` options for the decoder (beams, weights).
     pub extra_args: Vec<(String, String)>,
+    /// Pronunciations added to the dictionary before the grammar is compiled: `(word, phones)`,
+    /// `word(2)` for an alternative pronunciation of a word the dictionary has.
+    pub extra_words: Vec<(String, String)>,
     /// Most distinct N-best sentences read after each utterance (0: none); at most 4 times as
     /// many lattice paths are visited to find them.
     pub nbest: usize,
@@ -48,6 +51,7 @@ impl DecoderConfig {
             log_file: std::env::temp_dir()
                 .join(format!("pocketsphinx-{}-{n}.log", std::process::id())),
             extra_args: Vec::new(),
+            extra_words: Vec::new(),
             nbest: NBEST,
         }
     }
@@ -63,6 +67,12 @@ pub enum DecoderError {
     Init { log: String },
     #[error("grammar {name}: PocketSphinx cannot compile it: {log}")]
     Grammar { name: String, log: String },
+    #[error("pronunciation {word} [{phones}] refused by PocketSphinx: {log}")]
+    Word {
+        word: String,
+        phones: String,
+        log: String,
+    },
     #[error("{0} contains a NUL byte")]
     Nul(String),
     #[error("decoding failed in {0}")]
@@ -204,6 +214,17 @@ impl Decoder {
             phones_only: false,
             nbest: config.nbest,
         };
+        for (word, pron) in &config.extra_words {
+            let (w, p) = (cstring(word)?, cstring(pron)?);
+            // SAFETY: valid decoder and C strings; the dictionary copies them.
+            if unsafe { sys::ps_add_word(me.ps, w.as_ptr(), p.as_ptr(), 0) } < 0 {
+                return Err(DecoderError::Word {
+                    word: word.clone(),
+                    phones: pron.clone(),
+                    log: log_tail(&me.log_file),
+                });
+            }
+        }
         let phones = cstring(PHONE_SEARCH)?;
         let lm = cstring(&config.phone_lm.display().to_string())?;
         // SAFETY: valid decoder and C strings.

@@ -67,6 +67,16 @@ unsafe extern "C" {
     pub fn ps_free(ps: *mut Decoder) -> c_int;
     pub fn ps_get_logmath(ps: *mut Decoder) -> *mut LogMath;
 
+    /// Add a pronunciation (`phones` space-separated; `word(2)` for an alternative of `word`) to
+    /// the dictionary; the word id, or < 0 (unknown phone, existing word). `update` non-zero
+    /// also adds it to the active search.
+    pub fn ps_add_word(
+        ps: *mut Decoder,
+        word: *const c_char,
+        phones: *const c_char,
+        update: c_int,
+    ) -> c_int;
+
     /// Add a JSGF grammar from a string as search `name`; < 0 on a parse error.
     pub fn ps_set_jsgf_string(ps: *mut Decoder, name: *const c_char, jsgf: *const c_char) -> c_int;
     /// Add a phone-loop search `name` with an optional phone language model file.

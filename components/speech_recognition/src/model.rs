@@ -1,0 +1,171 @@
+//! Which acoustic model the decoders load.
+//!
+//! Two kinds: PocketSphinx's stock US English model (Debian `pocketsphinx-en-us`), and a copy of
+//! it adapted by [`crate::adapt`] (MAP adaptation to noisy speech, built by the `speech_model`
+//! program). The adapted model is looked for in one place, [`adapted_model_dir`]; the choice is
+//! explicit on the command line (`--acoustic-model`), or made by [`AcousticModel::resolve`]:
+//!
+//! 1. `$ROBOCOG_ACOUSTIC_MODEL` (a folder, or `stock`);
+//! 2. the adapted model, when [`adapted_model_dir`] holds one;
+//! 3. the stock model (with a warning from the component: noisy commands suffer).
+
+use pocketsphinx_sys_min::decoder::DEBIAN_MODEL_DIR;
+use std::path::{Path, PathBuf};
+
+/// The files a PocketSphinx model folder needs (`sendump` or `mixture_weights` as well).
+pub const MODEL_FILES: [&str; 5] = [
+    "mdef",
+    "means",
+    "variances",
+    "transition_matrices",
+    "feat.params",
+];
+
+/// Written by [`crate::adapt`] into the adapted model's folder: how it was made.
+pub const PROVENANCE_FILE: &str = "robocog-model.json";
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ModelError {
+    #[error(
+        "acoustic model {dir}: no {file} (a PocketSphinx model folder has mdef, means, variances, transition_matrices, feat.params and sendump or mixture_weights)"
+    )]
+    Incomplete { dir: PathBuf, file: String },
+    #[error("acoustic model {0}: no such folder")]
+    Missing(PathBuf),
+}
+
+/// An acoustic model folder, checked to be complete.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AcousticModel {
+    pub dir: PathBuf,
+    /// Whether it is the stock Debian model (else a folder given or adapted).
+    pub stock: bool,
+}
+
+impl AcousticModel {
+    /// The stock Debian model.
+    pub fn stock() -> Self {
+        Self {
+            dir: stock_model_dir(),
+            stock: true,
+        }
+    }
+
+    /// `spec` is `stock` or a model folder; `None` picks as the module doc says.
+    pub fn resolve(spec: Option<&str>) -> Result<Self, ModelError> {
+        let env = std::env::var("ROBOCOG_ACOUSTIC_MODEL").ok();
+        let spec = spec.or(env.as_deref().filter(|s| !s.is_empty()));
+        match spec {
+            Some("stock") => Ok(Self::stock()),
+            Some(dir) => Self::at(Path::new(dir)),
+            None => {
+                let adapted = adapted_model_dir();
+                if adapted.join(PROVENANCE_FILE).is_file() {
+                    Self::at(&adapted)
+                } else {
+                    Ok(Self::stock())
+                }
+            }
+        }
+    }
+
+    /// What [`Self::resolve`] picks without a command-line choice; when that fails (a broken
+    /// `$ROBOCOG_ACOUSTIC_MODEL`), the stock model, with a warning in the log.
+    pub fn preferred() -> Self {
+        Self::resolve(None).unwrap_or_else(|e| {
+            tracing::warn!("{e}; using the stock acoustic model");
+            Self::stock()
+        })
+    }
+
+    /// The model in `dir`, if it is complete.
+    pub fn at(dir: &Path) -> Result<Self, ModelError> {
+        check_model_dir(dir)?;
+        let stock = dir == stock_model_dir();
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            stock,
+        })
+    }
+
+    /// A line for the logs: which model, and how it was made when known.
+    pub fn describe(&self) -> String {
+        if self.stock {
+            return format!("stock PocketSphinx en-us ({})", self.dir.display());
+        }
+        let how = std::fs::read_to_string(self.dir.join(PROVENANCE_FILE))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v.get("summary").and_then(|s| s.as_str()).map(String::from))
+            .unwrap_or_else(|| "no provenance file".into());
+        format!("{} ({how})", self.dir.display())
+    }
+}
+
+/// The stock model's folder.
+pub fn stock_model_dir() -> PathBuf {
+    Path::new(DEBIAN_MODEL_DIR).join("en-us")
+}
+
+/// Where `speech_model` writes the adapted model and the recognizer looks for it:
+/// `$XDG_CACHE_HOME/robocog/speech/en-us-adapted`, else under `~/.cache`. A cache: it is
+/// rebuilt from the recipe in [`crate::adapt`] when missing or out of date.
+pub fn adapted_model_dir() -> PathBuf {
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+        .unwrap_or_else(std::env::temp_dir);
+    cache.join("robocog/speech/en-us-adapted")
+}
+
+/// Whether `dir` holds every file of a PocketSphinx model.
+pub fn check_model_dir(dir: &Path) -> Result<(), ModelError> {
+    if !dir.is_dir() {
+        return Err(ModelError::Missing(dir.to_path_buf()));
+    }
+    for f in MODEL_FILES {
+        if !dir.join(f).is_file() {
+            return Err(ModelError::Incomplete {
+                dir: dir.to_path_buf(),
+                file: f.into(),
+            });
+        }
+    }
+    if !dir.join("sendump").is_file() && !dir.join("mixture_weights").is_file() {
+        return Err(ModelError::Incomplete {
+            dir: dir.to_path_buf(),
+            file: "sendump or mixture_weights".into(),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_stock_model_is_complete_and_named() {
+        let m = AcousticModel::resolve(Some("stock")).unwrap();
+        assert!(m.stock);
+        check_model_dir(&m.dir).unwrap();
+        assert!(m.describe().contains("stock"));
+    }
+
+    #[test]
+    fn an_incomplete_folder_is_a_clear_error() {
+        let d = std::env::temp_dir().join(format!("robocog-model-test-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("mdef"), b"x").unwrap();
+        let e = AcousticModel::resolve(Some(d.to_str().unwrap())).unwrap_err();
+        assert!(
+            matches!(&e, ModelError::Incomplete { file, .. } if file == "means"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("means"));
+        std::fs::remove_dir_all(&d).unwrap();
+        let e = AcousticModel::resolve(Some(d.to_str().unwrap())).unwrap_err();
+        assert_eq!(e, ModelError::Missing(d));
+    }
+}

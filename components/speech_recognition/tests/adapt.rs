@@ -1,0 +1,114 @@
+//! `speech_model`: adapting the acoustic model on a folder of recordings, and what bad
+//! recordings get. The synthesized corpus is built by `scripts/test` itself (it is the model the
+//! other tests use); these tests use small corpora so they run in seconds.
+
+mod common;
+
+use common::{spoken, voice};
+use interfaces::msg::command::{Command, Game};
+use speech_generator::wav::{Pcm, encode};
+use speech_recognition::model::{AcousticModel, PROVENANCE_FILE};
+use speech_recognition::{Recognizer, RecognizerConfig};
+use std::path::Path;
+use std::process::{Command as Process, Output};
+
+fn speech_model(args: &[&str]) -> Output {
+    Process::new(env!("CARGO_BIN_EXE_speech_model"))
+        .args(args)
+        .output()
+        .expect("speech_model runs")
+}
+
+fn write_recording(dir: &Path, name: &str, text: &str, samples: Vec<i16>) {
+    let pcm = Pcm {
+        sample_rate_hz: 16000,
+        channels: 1,
+        samples,
+    };
+    std::fs::write(dir.join(format!("{name}.wav")), encode(&pcm)).unwrap();
+    std::fs::write(dir.join(format!("{name}.txt")), text).unwrap();
+}
+
+#[test]
+fn recordings_adapt_a_model_the_recognizer_loads() {
+    let dir = robocog_tests::scratch("adapt-recordings");
+    let rec = dir.join("recordings");
+    std::fs::create_dir_all(&rec).unwrap();
+    let mut i = 0;
+    for v in [voice("en-us+m2", 150, 45), voice("en-gb+f5", 170, 55)] {
+        for c in Command::of_game(Game::Touch) {
+            // Punctuation and case as people type them.
+            let text = format!("{}!", c.phrase().to_uppercase());
+            write_recording(&rec, &format!("r{i:02}"), &text, spoken(c.phrase(), &v, 15.0, i));
+            i += 1;
+        }
+    }
+    let out = dir.join("model");
+    let (o, r) = (out.to_str().unwrap(), rec.to_str().unwrap());
+    let run = speech_model(&["--out", o, "--recordings", r]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(err.contains("Baum-Welch") && err.contains("done"), "{err}");
+    let prov: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join(PROVENANCE_FILE)).unwrap())
+            .unwrap();
+    assert_eq!(prov["utterances"], i);
+    assert!(prov["summary"].as_str().unwrap().contains("recordings"));
+    // Built from the same recordings: up to date, nothing to do.
+    assert!(speech_model(&["--out", o, "--recordings", r, "--check"]).status.success());
+    let again = speech_model(&["--out", o, "--recordings", r]);
+    assert!(String::from_utf8_lossy(&again.stderr).contains("up to date"));
+    // Another recipe (the synthesized corpus) is not what is there.
+    assert!(!speech_model(&["--out", o, "--check"]).status.success());
+
+    let model = AcousticModel::resolve(Some(o)).unwrap();
+    assert!(!model.stock);
+    let mut recognizer = Recognizer::shipped(
+        Game::Touch,
+        RecognizerConfig {
+            acoustic_model: model,
+            ..RecognizerConfig::default()
+        },
+    )
+    .unwrap();
+    let mut got = recognizer
+        .push(&spoken("touch the ball", &voice("en-us", 160, 50), 30.0, 7))
+        .unwrap();
+    got.extend(recognizer.flush().unwrap());
+    assert_eq!(got.len(), 1, "{got:?}");
+    assert_eq!(got[0].command, Command::TouchBall, "{got:?}");
+}
+
+#[test]
+fn bad_recordings_get_clear_errors() {
+    let dir = robocog_tests::scratch("adapt-bad");
+    let out = dir.join("model");
+    let o = out.to_str().unwrap();
+    let case = |name: &str, setup: &dyn Fn(&Path)| -> String {
+        let rec = dir.join(name);
+        std::fs::create_dir_all(&rec).unwrap();
+        setup(&rec);
+        let run = speech_model(&["--out", o, "--recordings", rec.to_str().unwrap()]);
+        assert!(!run.status.success(), "{name} was accepted");
+        String::from_utf8_lossy(&run.stderr).into_owned()
+    };
+    let e = case("empty", &|_| {});
+    assert!(e.contains("no .wav files"), "{e}");
+    let e = case("no-transcription", &|d| {
+        write_recording(d, "a", "stop", spoken("stop", &voice("en-us", 160, 50), 20.0, 1));
+        std::fs::remove_file(d.join("a.txt")).unwrap();
+    });
+    assert!(e.contains("a.wav has no transcription"), "{e}");
+    let e = case("unknown-word", &|d| {
+        let s = spoken("stop", &voice("en-us", 160, 50), 20.0, 1);
+        write_recording(d, "a", "stop zzxqv", s);
+    });
+    assert!(e.contains("zzxqv") && e.contains("a.wav"), "{e}");
+    let e = case("not-audio", &|d| {
+        std::fs::write(d.join("a.wav"), b"hello").unwrap();
+        std::fs::write(d.join("a.txt"), b"stop").unwrap();
+    });
+    assert!(e.contains("a.wav") && e.contains("RIFF"), "{e}");
+    // Nothing was written where the model goes.
+    assert!(!out.exists());
+}
