@@ -39,7 +39,12 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
         for c in Command::of_game(Game::Touch) {
             // Punctuation and case as people type them.
             let text = format!("{}!", c.phrase().to_uppercase());
-            write_recording(&rec, &format!("r{i:02}"), &text, spoken(c.phrase(), &v, 15.0, i));
+            write_recording(
+                &rec,
+                &format!("r{i:02}"),
+                &text,
+                spoken(c.phrase(), &v, 15.0, i),
+            );
             i += 1;
         }
     }
@@ -50,12 +55,15 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
     assert!(run.status.success(), "{err}");
     assert!(err.contains("Baum-Welch") && err.contains("done"), "{err}");
     let prov: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join(PROVENANCE_FILE)).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join(PROVENANCE_FILE)).unwrap()).unwrap();
     assert_eq!(prov["utterances"], i);
     assert!(prov["summary"].as_str().unwrap().contains("recordings"));
     // Built from the same recordings: up to date, nothing to do.
-    assert!(speech_model(&["--out", o, "--recordings", r, "--check"]).status.success());
+    assert!(
+        speech_model(&["--out", o, "--recordings", r, "--check"])
+            .status
+            .success()
+    );
     let again = speech_model(&["--out", o, "--recordings", r]);
     assert!(String::from_utf8_lossy(&again.stderr).contains("up to date"));
     // Another recipe (the synthesized corpus) is not what is there.
@@ -95,7 +103,12 @@ fn bad_recordings_get_clear_errors() {
     let e = case("empty", &|_| {});
     assert!(e.contains("no .wav files"), "{e}");
     let e = case("no-transcription", &|d| {
-        write_recording(d, "a", "stop", spoken("stop", &voice("en-us", 160, 50), 20.0, 1));
+        write_recording(
+            d,
+            "a",
+            "stop",
+            spoken("stop", &voice("en-us", 160, 50), 20.0, 1),
+        );
         std::fs::remove_file(d.join("a.txt")).unwrap();
     });
     assert!(e.contains("a.wav has no transcription"), "{e}");
