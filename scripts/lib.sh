@@ -67,8 +67,25 @@ prune_incremental() {
   fi
 }
 
+# Two checkouts sharing the cache (a CI clone beside a working copy): the workspace crates'
+# binaries of one checkout carry its paths (where models, grammars and test data are), and cargo
+# takes them for up to date in the other when that one's sources are older. When the last build
+# came from another checkout, the workspace's sources are touched so its crates are rebuilt
+# (the dependencies are shared as they are).
+claim_cache() {
+  local mark="$CARGO_TARGET_DIR/.last-checkout"
+  mkdir -p "$CARGO_TARGET_DIR"
+  if [ -f "$mark" ] && [ "$(cat "$mark")" != "$ROOT" ]; then
+    step "the build cache was last used by $(cat "$mark"): rebuilding this checkout's crates"
+    find "$ROOT" -path "$ROOT/tests/browser/node_modules" -prune -o -path "$ROOT/.git" -prune \
+      -o \( -name '*.rs' -o -name 'Cargo.toml' \) -print0 | xargs -0 touch
+  fi
+  echo "$ROOT" > "$mark"
+}
+
 build_all() {
   prune_incremental
+  claim_cache
   step "building every robocog binary (release, into $CARGO_TARGET_DIR)"
   (cd "$ROOT" && cargo build --release --workspace --bins --examples)
 }

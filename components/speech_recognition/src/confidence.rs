@@ -36,10 +36,10 @@
 //! The recognizer therefore also estimates the utterance's signal-to-noise ratio from its own
 //! samples ([`estimate_snr_db`]: the power of the loud frames over that of the quiet ones, which
 //! the end-pointer's pre-roll and tail provide), and multiplies `p` by the probability that the
-//! hypothesis is right at that SNR, a logistic fitted to the corpus' accuracy per SNR (99, 94,
-//! 78 and 67 % at 30, 20, 10 and 5 dB; `k` = 0.155 per dB, and `snr_mid` = 3.5 dB on the
-//! *estimated* SNR, which reads about 3 dB high at 5–10 dB because the loud frames include the
-//! noise under the speech):
+//! hypothesis is right at that SNR, a logistic fitted to the accuracy per SNR of the tuning
+//! voices on the adapted acoustic model (94, 85 and 65 % at 10, 5 and 0 dB; `k` = 0.25 per dB,
+//! and `snr_mid` = 2.5 dB on the *estimated* SNR, which reads 3 to 5 dB high at 0–10 dB because
+//! the loud frames include the noise under the speech):
 //!
 //! ```text
 //!     q(snr) = 1 / (1 + exp(−k · (snr − snr_mid)))        confidence = p · q(snr)

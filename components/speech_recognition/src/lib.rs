@@ -1,8 +1,8 @@
 //! # speech_recognition: grammar-constrained recognition with a confidence score
 //!
 //! Audio is a continuous 16 000 Hz mono signed 16-bit stream. The end-pointer ([`vad`]) cuts
-//! utterances out of it; each is decoded by PocketSphinx (the Debian `pocketsphinx-en-us` model)
-//! twice, both searches fed while the person still speaks so that only the end of the search
+//! utterances out of it; each is decoded by PocketSphinx (the Debian `pocketsphinx-en-us` model,
+//! MAP-adapted to noisy speech by [`adapt`] when that was built, see [`model`]) twice, both searches fed while the person still speaks so that only the end of the search
 //! remains after the end-pointer's cut: constrained by the game's JSGF grammar ([`grammar`], files
 //! in `grammars/`), and by a
 //! loop of filler words that stands for anything else (the garbage model, [`garbage`]). The
@@ -13,10 +13,12 @@
 //! The component (`src/main.rs`) reads `audio/in` (or `--wav FILE`) and publishes
 //! `speech/utterance`.
 //!
-//! Opt-in (`--denoise`, `--noise-robust`): a Wiener filter ([`denoise`]) lowers the background
-//! noise before decoding, its estimate taken from the quiet just before the speech, and the
-//! decoder runs with wider beams and without its own voice detection. Better in noise, but the
-//! confidence is not recalibrated for them yet (BENCHMARKS.md, speech).
+//! The decoder runs with wider beams and without its own voice detection (`--noise-robust`, on
+//! by default). Opt-in (`--denoise`): a Wiener filter ([`denoise`]) lowers the background noise
+//! before decoding, its estimate taken from the quiet just before the speech; the adapted model
+//! has not seen its output, so it is off by default.
+//!
+//! A second program, `speech_model` (`src/bin/`), builds the adapted acoustic model.
 
 pub mod adapt;
 pub mod confidence;
