@@ -18,8 +18,10 @@
 //! 3. `sphinx_fe` computes the features with the model's `feat.params`;
 //! 4. `bw` collects the Baum-Welch statistics along each transcription (utterances it cannot
 //!    align are counted and skipped);
-//! 5. `map_adapt` re-estimates the parameters, and `mk_s2sendump` quantizes the mixture weights
-//!    back into a `sendump`.
+//! 5. `map_adapt` re-estimates the parameters from the stock ones and those statistics;
+//! 6. steps 4 and 5 again ([`PASSES`]), the statistics now collected with the adapted model
+//!    (better alignments in noise), and `mk_s2sendump` quantizes the mixture weights back into a
+//!    `sendump`.
 //!
 //! The result is a complete model folder with a provenance file ([`PROVENANCE_FILE`]) holding
 //! the recipe's fingerprint, so a build is skipped when its recipe has not changed.
@@ -38,7 +40,10 @@ use std::process::Command as Process;
 use std::time::Instant;
 
 /// Bump when the recipe changes in a way the fingerprint does not see (tool options).
-pub const RECIPE_VERSION: u32 = 1;
+pub const RECIPE_VERSION: u32 = 2;
+
+/// Baum-Welch and MAP passes: the second aligns the corpus with the first's model.
+pub const PASSES: usize = 2;
 
 /// The synthesized corpus' espeak-ng voices. None of them is an evaluation voice of
 /// `scripts/bench speech` (which checks it), nor one of its tuning voices.
@@ -216,6 +221,7 @@ impl Recipe {
             h.add(format!("{snr}{kind:?}").as_bytes());
         }
         h.add(&SEED.to_le_bytes());
+        h.add(&PASSES.to_le_bytes());
         let mut files: Vec<PathBuf> = MODEL_FILES
             .iter()
             .chain(["sendump", "mixture_weights"].iter())
@@ -608,84 +614,99 @@ pub fn build(
         &work.join("sphinx_fe.log"),
     )?;
 
-    progress(Progress::Step(
-        "Baum-Welch statistics (bw; about a minute per hour of audio)".into(),
-    ));
     let params = FeatParams::read(&base.join("feat.params"))?;
-    let acc = work.join("acc");
-    std::fs::create_dir_all(&acc).map_err(|e| file_err(&acc, e))?;
-    let bw_log = work.join("bw.log");
-    let mut bw = Process::new(&tools.bw);
-    bw.arg("-hmmdir")
-        .arg(&base)
-        .arg("-moddeffn")
-        .arg(base.join("mdef.txt"))
-        .args(["-ts2cbfn", params.ts2cb()])
-        .args(["-feat", &params.feat])
-        .args(["-cmn", &params.cmn, "-agc", &params.agc])
-        .arg("-dictfn")
-        .arg(&dict)
-        .arg("-fdictfn")
-        .arg(base.join("noisedict"))
-        .arg("-ctlfn")
-        .arg(&fileids)
-        .arg("-lsnfn")
-        .arg(corpus_dir.join("adapt.transcription"))
-        .arg("-cepdir")
-        .arg(corpus_dir.join("mfc"))
-        .arg("-accumdir")
-        .arg(&acc);
-    if !params.svspec.is_empty() {
-        bw.args(["-svspec", &params.svspec]);
-    }
-    let bw_out = run("bw", &mut bw, &bw_log)?;
-    let not_aligned = bw_out.lines().filter(|l| l.contains("ignored")).count();
-    let aligned = w.n - not_aligned.min(w.n);
-    if aligned * 2 < w.n {
-        return Err(AdaptError::Alignment {
-            aligned,
-            total: w.n,
-            log: bw_log,
-        });
-    }
-
-    progress(Progress::Step("MAP re-estimation (map_adapt)".into()));
-    let new = out.with_extension("new");
-    let _ = std::fs::remove_dir_all(&new);
-    std::fs::create_dir_all(&new).map_err(|e| file_err(&new, e))?;
-    run(
-        "map_adapt",
-        Process::new(&tools.map_adapt)
+    // Pass 1 aligns the corpus with the stock model, pass 2 with pass 1's result; each
+    // re-estimates from the stock model (the prior) with its statistics.
+    let mut align_dir = base.clone();
+    let mut not_aligned = 0;
+    for pass in 1..=PASSES {
+        progress(Progress::Step(format!(
+            "Baum-Welch statistics, pass {pass} of {PASSES} (bw; about a minute per hour of audio)"
+        )));
+        let acc = work.join(format!("acc{pass}"));
+        std::fs::create_dir_all(&acc).map_err(|e| file_err(&acc, e))?;
+        let bw_log = work.join(format!("bw{pass}.log"));
+        let mut bw = Process::new(&tools.bw);
+        bw.arg("-hmmdir")
+            .arg(&align_dir)
             .arg("-moddeffn")
             .arg(base.join("mdef.txt"))
             .args(["-ts2cbfn", params.ts2cb()])
-            .arg("-meanfn")
-            .arg(base.join("means"))
-            .arg("-varfn")
-            .arg(base.join("variances"))
-            .arg("-mixwfn")
-            .arg(&mixw)
-            .arg("-tmatfn")
-            .arg(base.join("transition_matrices"))
+            .args(["-feat", &params.feat])
+            .args(["-cmn", &params.cmn, "-agc", &params.agc])
+            .arg("-dictfn")
+            .arg(&dict)
+            .arg("-fdictfn")
+            .arg(base.join("noisedict"))
+            .arg("-ctlfn")
+            .arg(&fileids)
+            .arg("-lsnfn")
+            .arg(corpus_dir.join("adapt.transcription"))
+            .arg("-cepdir")
+            .arg(corpus_dir.join("mfc"))
             .arg("-accumdir")
-            .arg(&acc)
-            .arg("-mapmeanfn")
-            .arg(new.join("means"))
-            .arg("-mapvarfn")
-            .arg(new.join("variances"))
-            .arg("-mapmixwfn")
-            .arg(work.join("mixture_weights.map"))
-            .arg("-maptmatfn")
-            .arg(new.join("transition_matrices")),
-        &work.join("map_adapt.log"),
-    )?;
+            .arg(&acc);
+        if !params.svspec.is_empty() {
+            bw.args(["-svspec", &params.svspec]);
+        }
+        let bw_out = run("bw", &mut bw, &bw_log)?;
+        not_aligned = bw_out.lines().filter(|l| l.contains("ignored")).count();
+        let aligned = w.n - not_aligned.min(w.n);
+        if aligned * 2 < w.n {
+            return Err(AdaptError::Alignment {
+                aligned,
+                total: w.n,
+                log: bw_log,
+            });
+        }
+        progress(Progress::Step(format!(
+            "MAP re-estimation, pass {pass} of {PASSES} (map_adapt)"
+        )));
+        let target = work.join(format!("pass{pass}"));
+        std::fs::create_dir_all(&target).map_err(|e| file_err(&target, e))?;
+        run(
+            "map_adapt",
+            Process::new(&tools.map_adapt)
+                .arg("-moddeffn")
+                .arg(base.join("mdef.txt"))
+                .args(["-ts2cbfn", params.ts2cb()])
+                .arg("-meanfn")
+                .arg(base.join("means"))
+                .arg("-varfn")
+                .arg(base.join("variances"))
+                .arg("-mixwfn")
+                .arg(&mixw)
+                .arg("-tmatfn")
+                .arg(base.join("transition_matrices"))
+                .arg("-accumdir")
+                .arg(&acc)
+                .arg("-mapmeanfn")
+                .arg(target.join("means"))
+                .arg("-mapvarfn")
+                .arg(target.join("variances"))
+                .arg("-mapmixwfn")
+                .arg(target.join("mixture_weights"))
+                .arg("-maptmatfn")
+                .arg(target.join("transition_matrices")),
+            &work.join(format!("map_adapt{pass}.log")),
+        )?;
+        align_dir = target;
+    }
+
+    let new = out.with_extension("new");
+    let _ = std::fs::remove_dir_all(&new);
+    std::fs::create_dir_all(&new).map_err(|e| file_err(&new, e))?;
+    for f in ["means", "variances", "transition_matrices"] {
+        let from = align_dir.join(f);
+        std::fs::copy(&from, new.join(f)).map_err(|e| file_err(&from, e))?;
+    }
     run(
         "mk_s2sendump",
         Process::new(&tools.mk_s2sendump)
             .args(["-pocketsphinx", "yes", "-moddeffn"])
             .arg(base.join("mdef.txt"))
             .arg("-mixwfn")
-            .arg(work.join("mixture_weights.map"))
+            .arg(align_dir.join("mixture_weights"))
             .arg("-sendumpfn")
             .arg(new.join("sendump")),
         &work.join("mk_s2sendump.log"),

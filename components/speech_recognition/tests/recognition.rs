@@ -11,8 +11,16 @@ use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig, RecognizerError};
 use std::collections::HashSet;
 
+/// The component's default configuration, which these tests' thresholds are for: on the
+/// adapted acoustic model (`scripts/test` builds it).
 fn recognizer(game: Game) -> Recognizer {
-    Recognizer::shipped(game, RecognizerConfig::default()).unwrap()
+    let cfg = RecognizerConfig::default();
+    assert!(
+        !cfg.acoustic_model.stock,
+        "these tests expect the adapted acoustic model (run scripts/test, or speech_model, first): {}",
+        cfg.acoustic_model.describe()
+    );
+    Recognizer::shipped(game, cfg).unwrap()
 }
 
 #[test]
