@@ -13,7 +13,7 @@ use std::process::ExitCode;
 /// recordings (`--recordings`). The result goes where `speech_recognition` looks for it first.
 ///
 /// Needs the Debian packages sphinxtrain, sphinxbase-utils, pocketsphinx-en-us and espeak-ng.
-/// A build takes about 3 minutes on two cores; it is skipped when the model there was built from
+/// A build takes about 4 minutes on two cores; it is skipped when the model there was built from
 /// the same recipe.
 #[derive(Debug, Parser)]
 #[command(name = "speech_model")]
