@@ -271,7 +271,12 @@ async fn a_low_confidence_command_is_confirmed_by_yes() {
     // The person speaks in a noisy room (6 dB SNR) to a cautious robot: the recognizer's
     // confidence (at most about 0.85 at that SNR) is under the dialog's high threshold (0.9),
     // the dialog asks "Did you say ...?", she says yes, and the command is carried out.
-    let game = play("confirm_yes", &["dialog_high=0.9"], Duration::from_secs(180)).await;
+    let game = play(
+        "confirm_yes",
+        &["dialog_high=0.9"],
+        Duration::from_secs(180),
+    )
+    .await;
     check_ok(&game);
     let asked = game
         .said
