@@ -98,10 +98,8 @@ impl Default for RecognizerConfig {
             fillers: Some(crate::garbage::filler_file()),
             filler_weight: 1.0,
             nbest: 0,
-            // Off by default: on the corpus it gains 1-2 points at 10 dB, but it lowers the
-            // confidence of clean commands under the dialog's high threshold (the touch game's
-            // scenarios at 30 dB then get "Did you say ...?"): the confidence calibration has to be
-            // refitted with it first.
+            // Off by default: the adapted acoustic model never heard its output (adapting on
+            // enhanced audio would be the way to evaluate it).
             denoise: None,
             noise_robust: true,
             noise_lead_s: 0.2,
