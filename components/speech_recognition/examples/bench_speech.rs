@@ -33,7 +33,7 @@ use speech_recognition::model::AcousticModel;
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
 mod corpus;
-use corpus::{EVAL_VOICES as VOICES, SPEEDS, voice};
+use corpus::{EVAL_VOICES as VOICES, LEAD_S, SPEEDS, TRAIL_S, speech_end_s, voice};
 
 const OOG: &[&str] = &[
     "what a lovely day it is today",
@@ -151,8 +151,8 @@ fn main() {
                     speech,
                     snr,
                     NoiseKind::White,
-                    0.6,
-                    0.8,
+                    LEAD_S,
+                    TRAIL_S,
                     &mut NoiseRng::new((vi * 7 + si) as u64 + 1),
                 );
                 if let Some(d) = &wav_dir {
@@ -173,12 +173,7 @@ fn main() {
                     ));
                     n_wav += 1;
                 }
-                let end = 0.6
-                    + speech
-                        .iter()
-                        .rposition(|x| x.unsigned_abs() > 300)
-                        .unwrap_or(0) as f64
-                        / 16000.0;
+                let end = speech_end_s(speech);
                 let t = std::time::Instant::now();
                 let got = stream(&mut rec, &a, end);
                 busy_s += t.elapsed().as_secs_f64();
@@ -231,8 +226,8 @@ fn main() {
                     &speech,
                     20.0,
                     NoiseKind::White,
-                    0.6,
-                    0.8,
+                    LEAD_S,
+                    TRAIL_S,
                     &mut NoiseRng::new(i as u64 + 100),
                 );
                 let got = stream(&mut rec, &a, f64::NAN);

@@ -15,7 +15,7 @@ use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig};
 
 mod corpus;
-use corpus::{EVAL_VOICES, SPEEDS, TUNE_VOICES, voice};
+use corpus::{EVAL_VOICES, LEAD_S, SPEEDS, TRAIL_S, TUNE_VOICES, speech_end_s, voice};
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -84,16 +84,11 @@ fn main() {
                             &speech,
                             snr,
                             NoiseKind::White,
-                            0.6,
-                            0.8,
+                            LEAD_S,
+                            TRAIL_S,
                             &mut NoiseRng::new(seed0 + (vi * 7 + si) as u64),
                         );
-                        let end = 0.6
-                            + speech
-                                .iter()
-                                .rposition(|x| x.unsigned_abs() > 300)
-                                .unwrap_or(0) as f64
-                                / 16000.0;
+                        let end = speech_end_s(&speech);
                         let mut got = vec![];
                         let mut pos = 0;
                         for chunk in a.chunks(if std::env::var("WHOLE").is_ok() {

@@ -252,11 +252,7 @@ impl Recipe {
     /// Whether `out` holds a model built from this recipe.
     pub fn is_built_in(&self, out: &Path) -> bool {
         check_model_dir(out).is_ok()
-            && std::fs::read_to_string(out.join(PROVENANCE_FILE))
-                .ok()
-                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-                .and_then(|v| v.get("recipe").and_then(|r| r.as_str()).map(String::from))
-                .is_some_and(|r| r == self.fingerprint())
+            && crate::model::provenance(out, "recipe").is_some_and(|r| r == self.fingerprint())
     }
 }
 

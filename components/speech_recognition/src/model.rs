@@ -93,13 +93,16 @@ impl AcousticModel {
         if self.stock {
             return format!("stock PocketSphinx en-us ({})", self.dir.display());
         }
-        let how = std::fs::read_to_string(self.dir.join(PROVENANCE_FILE))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|v| v.get("summary").and_then(|s| s.as_str()).map(String::from))
-            .unwrap_or_else(|| "no provenance file".into());
+        let how = provenance(&self.dir, "summary").unwrap_or_else(|| "no provenance file".into());
         format!("{} ({how})", self.dir.display())
     }
+}
+
+/// A text field of the provenance file in `dir`, if there is one.
+pub fn provenance(dir: &Path, field: &str) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join(PROVENANCE_FILE)).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    v.get(field)?.as_str().map(String::from)
 }
 
 /// The stock model's folder.

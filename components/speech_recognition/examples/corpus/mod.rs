@@ -28,3 +28,18 @@ pub fn voice(name: &str, si: usize) -> Voice {
         pitch: 35 + 10 * si as u8,
     }
 }
+
+/// Noise before and after each utterance of the corpus (s).
+pub const LEAD_S: f64 = 0.6;
+pub const TRAIL_S: f64 = 0.8;
+
+/// Where the speech ends in the mixed stream (s): the last sample of the clean speech louder
+/// than 300/32768, after the [`LEAD_S`] of noise.
+pub fn speech_end_s(speech: &[i16]) -> f64 {
+    LEAD_S
+        + speech
+            .iter()
+            .rposition(|x| x.unsigned_abs() > 300)
+            .unwrap_or(0) as f64
+            / 16000.0
+}
