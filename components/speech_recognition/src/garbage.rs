@@ -218,6 +218,31 @@ mod tests {
     }
 
     #[test]
+    fn extra_pronunciations_become_numbered_alternatives_and_bad_lines_name_the_line() {
+        let p = std::env::temp_dir().join(format!("prons-{}.dict", std::process::id()));
+        std::fs::write(
+            &p,
+            "# comment\nno N AH OW # British\nno n oh\nno N OW\nrobocog R OW B OW K AA G\n",
+        )
+        .unwrap();
+        let got = load_pronunciations(&p, &dict()).unwrap();
+        assert_eq!(
+            got,
+            vec![
+                ("no(2)".to_string(), "N AH OW".to_string()),
+                ("no(3)".to_string(), "N OH".to_string()),
+                ("robocog".to_string(), "R OW B OW K AA G".to_string()),
+            ]
+        );
+        std::fs::write(&p, "day D EY\ncup(2) K UH P\n").unwrap();
+        let e = load_pronunciations(&p, &dict()).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("prons-"), "{e}");
+        std::fs::write(&p, "lonely\n").unwrap();
+        assert!(load_pronunciations(&p, &dict()).is_err());
+        std::fs::remove_file(&p).unwrap();
+    }
+
+    #[test]
     fn an_unknown_filler_word_names_the_file_and_line() {
         let p = std::env::temp_dir().join(format!("fillers-{}.words", std::process::id()));
         std::fs::write(&p, "# comment\nday\n\ncup # a cup\nzzyzxqw\n").unwrap();
