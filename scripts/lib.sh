@@ -34,6 +34,12 @@ need_voice_debs() {
     sphinxtrain sphinxbase-utils
 }
 
+# The head camera's driver library and its test stand-in: libfreenect (the Kinect v1) and the
+# fakenect library that replays a dump in its place (both in Debian's libfreenect-dev).
+need_camera_debs() {
+  need_debs libfreenect0.5 libfreenect-dev
+}
+
 # The adapted acoustic model the speech recognizer prefers (components/speech_recognition,
 # `speech_model`): built into ~/.cache/robocog/speech/ when missing or when its recipe changed
 # (about 4 minutes on two cores), otherwise left alone. Needs build_all first.

@@ -31,7 +31,8 @@
 //! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user):
 //!                                    # topics it subscribes to, or services it calls
 //! enabled = "${simulate}"            # "true" (default) or "false" after substitution: a profile
-//!                                    # can switch a simulator off when real hardware is used
+//!                                    # can switch a simulator off when real hardware is used;
+//!                                    # two components may share a name if at most one is enabled
 //! ```
 //!
 //! Unknown keys are errors. Every error names the file and line.
@@ -491,7 +492,10 @@ impl Manifest {
         }
         for c in &components {
             for d in &c.depends_on {
-                if let Some((_, at)) = disabled.iter().find(|(n, _)| n == d) {
+                // Two entries may share a name when a profile enables one of them (a simulated
+                // and a real driver of one role): depending on the name is fine while one is on.
+                let enabled = components.iter().any(|o| &o.name == d);
+                if let Some((_, at)) = disabled.iter().find(|(n, _)| n == d && !enabled) {
                     problems.push(Problem {
                         origin: c.origin.clone(),
                         message: format!(

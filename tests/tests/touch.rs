@@ -73,6 +73,14 @@ async fn play(scenario: &str, extra_sets: &[&str], limit: Duration) -> Game {
     play_with(scenario, extra_sets, limit, None).await
 }
 
+/// Play `scenario` in a manifest profile (`--profile`), with `--set` values.
+async fn play_profile(scenario: &str, profile: &str, extra_sets: &[&str], limit: Duration) -> Game {
+    let mut sets: Vec<&str> = extra_sets.to_vec();
+    let p = format!("--profile={profile}");
+    sets.push(&p);
+    play_with(scenario, &sets, limit, None).await
+}
+
 /// Kill a component (SIGKILL) once an output line contains a text: `(text, component)`.
 type KillHook<'a> = Option<(&'a str, &'a str)>;
 
@@ -89,7 +97,10 @@ async fn play_with(
     // The panel on a free port: tests run side by side.
     let mut extra = vec!["--set", set.as_str(), "--set", "panel_http=127.0.0.1:0"];
     for s in extra_sets {
-        extra.push("--set");
+        // `--profile=NAME` goes as it is; anything else is a `--set`.
+        if !s.starts_with("--") {
+            extra.push("--set");
+        }
         extra.push(s);
     }
     let mut launch = Launch::start(&manifest, &ns, &extra);
@@ -193,6 +204,33 @@ async fn touch_a_still_ball() {
     .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
     assert!(game.said_any("hello"), "{:?}", game.said);
     assert!(game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
+    let (hand, ball) = *game.touches.first().expect("a touch measured");
+    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+    assert!(
+        ball <= 0.02,
+        "DR ball {:.1} cm from the truth",
+        ball * 100.0
+    );
+}
+
+/// The whole game with the camera's frames going as a real Kinect's do: the simulated Kinect sends
+/// colour and 11-bit disparities through a live fakenect dump, the rgbd freenect driver reads them
+/// through Debian's fakenect libfreenect and registers depth to colour.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn touch_a_still_ball_seen_through_libfreenect() {
+    let dump = scratch(&unique_namespace("touch-kinect")).join("kinect");
+    let dump = format!("kinect_dump={}", dump.display());
+    let game = play_profile("still", "fakenect", &[&dump], Duration::from_secs(180)).await;
+    check_ok(&game);
+    game.entered_in_order(&["searching", "tracking", "reaching", "touching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("rgbd") && l.contains("through") && l.contains("fakenect")),
+        "the camera did not go through fakenect:\n{}",
+        game.output.join("\n")
+    );
     let (hand, ball) = *game.touches.first().expect("a touch measured");
     assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
     assert!(

@@ -54,6 +54,7 @@ use interfaces::{Bus, Header, Shutdown, topics};
 
 use crate::RgbdDriver;
 use crate::convert::{into_msg, seconds_to_ns};
+use crate::kinect::{DepthMode, Event, KinectConfig, KinectSim, KinectSource, LibraryChoice};
 use crate::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
 use crate::scenario::{BallGroundTruth, CameraPose, Scenario, ScenarioSim};
 use crate::sim::SensorModel;
@@ -66,6 +67,9 @@ pub enum DriverKind {
     Sim,
     /// A recorded TUM RGB-D sequence.
     Playback,
+    /// A Kinect v1 (or another camera libfreenect drives) through libfreenect; with
+    /// `--freenect-library fakenect`, Debian's fakenect replaying the dump `FAKENECT_PATH` names.
+    Freenect,
 }
 
 /// The component's flags.
@@ -125,11 +129,60 @@ pub struct Config {
     /// frame (0: start at once).
     #[arg(long, default_value_t = 0.0)]
     pub wait_for_subscriber_s: f64,
+    /// sim: act as a simulated Kinect: send the frames, as the sensor would, into a live
+    /// fakenect dump in this folder (created; its INDEX.txt is a FIFO) instead of onto the bus;
+    /// an `rgbd --driver freenect --freenect-library fakenect` with `FAKENECT_PATH` set to the
+    /// folder reads them through libfreenect's fakenect.
+    #[arg(long, value_name = "DIR")]
+    pub fakenect_out: Option<PathBuf>,
+    /// freenect: the libfreenect to load: `system` (libfreenect.so.0.5, Debian's
+    /// libfreenect0.5), `fakenect` (Debian's stand-in replaying `FAKENECT_PATH`), or a path.
+    #[arg(long, value_parser = LibraryChoice::parse, default_value = "system")]
+    pub freenect_library: LibraryChoice,
+    /// freenect: which camera (0: the first libfreenect lists).
+    #[arg(long, default_value_t = 0)]
+    pub device_index: u32,
+    /// freenect: depth registered by libfreenect (`registered`), by robocog from 11-bit
+    /// disparities (`raw`), or the first where the library can (`auto`; fakenect cannot).
+    #[arg(long, value_enum, default_value_t = DepthMode::Auto)]
+    pub depth_mode: DepthMode,
+    /// freenect: the colour camera's calibration, a ROS camera_info YAML file (default: the
+    /// nominal fx = fy = 525 px, principal point at the centre).
+    #[arg(long, value_name = "FILE")]
+    pub rgb_camera_info: Option<PathBuf>,
+    /// freenect, raw depth: the depth camera's calibration, a ROS camera_info YAML file
+    /// (default: the nominal fx = fy = 580 px).
+    #[arg(long, value_name = "FILE")]
+    pub depth_camera_info: Option<PathBuf>,
+    /// freenect, raw depth: the depth camera's origin in the colour camera's optical frame,
+    /// `x,y,z` in metres (default: 2.5 cm to its left).
+    #[arg(long, value_parser = parse_xyz, default_value = "-0.025,0,0")]
+    pub depth_origin_m: [f64; 3],
+    /// freenect: the camera counts as lost when no frame came for this long (s).
+    #[arg(long, default_value_t = 1.0)]
+    pub frame_timeout_s: f64,
+}
+
+fn parse_xyz(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e} (want x,y,z in metres)"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("{s:?}: want three finite numbers x,y,z in metres")),
+    }
 }
 
 /// What the component declares for `--describe`.
 pub fn interface(config: &Config) -> Interface {
-    let i = Interface::new("rgbd").publishes(&topics::VISION_RGBD);
+    let i = Interface::new("rgbd");
+    let i = if config.fakenect_out.is_some() {
+        i
+    } else {
+        i.publishes(&topics::VISION_RGBD)
+    };
     match config.driver {
         DriverKind::Sim => {
             let mut i = i.publishes(&topics::SIM_BALL_TRUTH);
@@ -141,7 +194,7 @@ pub fn interface(config: &Config) -> Interface {
             }
             i
         }
-        DriverKind::Playback => i,
+        DriverKind::Playback | DriverKind::Freenect => i,
     }
 }
 
@@ -198,6 +251,8 @@ pub enum Source {
         /// Stamp with the bus clock.
         restamp: bool,
     },
+    /// A camera through libfreenect.
+    Kinect(Box<KinectSource>),
 }
 
 impl Source {
@@ -265,10 +320,34 @@ impl Source {
                     period_s: 1.0 / config.fps,
                 })
             }
+            DriverKind::Freenect => {
+                anyhow::ensure!(
+                    !config.camera_from_joints
+                        && !config.ball_from_topic
+                        && config.fakenect_out.is_none(),
+                    "--camera-from-joints, --ball-from-topic and --fakenect-out need --driver sim"
+                );
+                anyhow::ensure!(
+                    config.frame_timeout_s.is_finite() && config.frame_timeout_s > 0.0,
+                    "--frame-timeout-s {} must be a positive number of seconds",
+                    config.frame_timeout_s
+                );
+                let source = KinectSource::open(&KinectConfig {
+                    library: config.freenect_library.clone(),
+                    index: config.device_index,
+                    depth_mode: config.depth_mode,
+                    rgb_camera_info: config.rgb_camera_info.clone(),
+                    depth_camera_info: config.depth_camera_info.clone(),
+                    depth_origin_m: config.depth_origin_m,
+                })?;
+                Ok(Source::Kinect(Box::new(source)))
+            }
             DriverKind::Playback => {
                 anyhow::ensure!(
-                    !config.camera_from_joints && !config.ball_from_topic,
-                    "--camera-from-joints and --ball-from-topic need --driver sim"
+                    !config.camera_from_joints
+                        && !config.ball_from_topic
+                        && config.fakenect_out.is_none(),
+                    "--camera-from-joints, --ball-from-topic and --fakenect-out need --driver sim"
                 );
                 let dir = config
                     .sequence
@@ -369,14 +448,14 @@ impl SimInputs {
     }
 }
 
-fn truth_msg(t: &BallGroundTruth, frame: &RgbdFrame) -> BallTruth {
+fn truth_msg(t: &BallGroundTruth, stamp_ns: i64, frame_seq: u64, frame_id: &str) -> BallTruth {
     BallTruth {
         header: Header {
-            stamp_ns: frame.header.stamp_ns,
+            stamp_ns,
             seq: 0,
-            frame_id: frame.header.frame_id.clone(),
+            frame_id: frame_id.to_string(),
         },
-        frame_seq: frame.header.seq,
+        frame_seq,
         centre_m: t.centre_camera_m,
         centre_world_m: t.centre_world_m,
         diameter_m: t.diameter_m,
@@ -418,10 +497,20 @@ pub async fn run(
     source: Source,
     mut shutdown: Shutdown,
 ) -> anyhow::Result<()> {
-    let frames = bus.publisher(&topics::VISION_RGBD).await?;
+    let mut kinect_sim = match (&config.fakenect_out, &source) {
+        (Some(dir), Source::Sim { .. }) => Some(KinectSim::create(
+            dir,
+            freenect::kinect::DepthCalibration::default(),
+        )?),
+        _ => None,
+    };
+    let frames = match kinect_sim {
+        Some(_) => None,
+        None => Some(bus.publisher(&topics::VISION_RGBD).await?),
+    };
     let truths = match source {
         Source::Sim { .. } => Some(bus.publisher(&topics::SIM_BALL_TRUTH).await?),
-        Source::Playback { .. } => None,
+        Source::Playback { .. } | Source::Kinect(_) => None,
     };
     let clock = bus.clock().clone();
     let now_s = move || clock.now_ns() as f64 * 1e-9;
@@ -494,11 +583,39 @@ pub async fn run(
                 let Some(frame) = world.next_frame(stamp_ns as f64 * 1e-9)? else {
                     return Ok(());
                 };
+                if let Some(sim) = kinect_sim.as_mut() {
+                    // The simulated Kinect: the frame goes through fakenect to the driver.
+                    let pose = head
+                        .as_ref()
+                        .map(HeadCamera::world_from_optical)
+                        .unwrap_or_else(|| config.camera_pose.world_from_optical());
+                    let up = pose.rotation.inverse() * nalgebra::Vector3::z() * 9.80665;
+                    let offer = sim.offer(&frame, now_ns as f64 * 1e-9, [up.x, up.y, up.z])?;
+                    if offer == freenect::fakenect::Offer::ReaderBehind {
+                        bus.counters().incr("kinect_sim_dropped");
+                    }
+                    if let (Some(p), Some(t), freenect::fakenect::Offer::Sent) =
+                        (&truths, world.truth(), offer)
+                    {
+                        let mut truth = truth_msg(&t, stamp_ns, sim.sent, &config.frame_id);
+                        p.publish(&mut truth).await?;
+                    }
+                    continue;
+                }
+                let Some(frames) = &frames else {
+                    continue;
+                };
                 let mut msg = into_msg(frame, &config.frame_id);
                 msg.header.stamp_ns = stamp_ns;
                 frames.publish(&mut msg).await?;
                 if let (Some(p), Some(t)) = (&truths, world.truth()) {
-                    p.publish(&mut truth_msg(&t, &msg)).await?;
+                    p.publish(&mut truth_msg(
+                        &t,
+                        msg.header.stamp_ns,
+                        msg.header.seq,
+                        &msg.header.frame_id,
+                    ))
+                    .await?;
                 }
             }
         }
@@ -538,8 +655,135 @@ pub async fn run(
                 if restamp {
                     msg.header.stamp_ns = seconds_to_ns(now_s());
                 }
-                frames.publish(&mut msg).await?;
+                if let Some(frames) = &frames {
+                    frames.publish(&mut msg).await?;
+                }
                 published += 1;
+            }
+        }
+        Source::Kinect(mut src) => {
+            let Some(frames) = frames else {
+                anyhow::bail!("--fakenect-out needs --driver sim");
+            };
+            run_kinect(&bus, &config, &mut src, &frames, &mut shutdown).await
+        }
+    }
+}
+
+/// Share of the pixels below which a frame counts as having no depth, or above which as
+/// saturated.
+const FRAME_SHARE: usize = 20;
+
+/// The freenect driver's loop: its thread's frames onto the bus, its losses and returns on
+/// `diagnostics` and in the log.
+async fn run_kinect(
+    bus: &Bus,
+    config: &Config,
+    src: &mut KinectSource,
+    frames: &interfaces::Publisher<RgbdFrame>,
+    shutdown: &mut Shutdown,
+) -> anyhow::Result<()> {
+    let counters = bus.counters().clone();
+    let dropped = counters.counter("camera_frames_dropped");
+    let timeout = Duration::from_secs_f64(config.frame_timeout_s);
+    let mut warn_limit = RateLimiter::new(Duration::from_secs(5));
+    let (mut stalled, mut opened_once, mut tilt_logged, mut frames_seen) =
+        (false, false, false, 0u64);
+    loop {
+        let event = tokio::select! {
+            biased;
+            _ = shutdown.wait() => return Ok(()),
+            e = tokio::time::timeout(timeout, src.events.recv()) => e,
+        };
+        dropped.store(
+            src.dropped.load(std::sync::atomic::Ordering::Relaxed),
+            std::sync::atomic::Ordering::Relaxed,
+        );
+        match event {
+            Err(_) => {
+                if !stalled && opened_once {
+                    stalled = true;
+                    counters.incr("camera_stalled");
+                    tracing::warn!(
+                        "no frame from the camera for {:.1} s (unplugged, or its USB link \
+                         stalled): waiting for it",
+                        timeout.as_secs_f64()
+                    );
+                }
+            }
+            Ok(None) => anyhow::bail!("the camera thread ended"),
+            Ok(Some(Event::Frame(frame, at, stats))) => {
+                if stalled {
+                    stalled = false;
+                    tracing::info!("frames from the camera again");
+                }
+                frames_seen += 1;
+                counters.incr("camera_frames");
+                let n = frame.pixel_count();
+                if stats.depth_pixels * FRAME_SHARE < n {
+                    counters.incr("frames_no_depth");
+                    if let Some(suppressed) = warn_limit.allow(std::time::Instant::now()) {
+                        tracing::warn!(
+                            suppressed,
+                            "frame {frames_seen}: depth on {} of {n} pixels only (too near, too \
+                             far, sunlight, or a covered projector)",
+                            stats.depth_pixels
+                        );
+                    }
+                }
+                if stats.saturated_pixels * FRAME_SHARE > n {
+                    counters.incr("frames_saturated");
+                }
+                let age_ns = i64::try_from(at.elapsed().as_nanos()).unwrap_or(0);
+                let mut msg = into_msg(*frame, &config.frame_id);
+                msg.header.stamp_ns = bus.clock().now_ns() - age_ns;
+                frames.publish(&mut msg).await?;
+            }
+            Ok(Some(Event::Opened { description })) => {
+                if opened_once {
+                    counters.incr("camera_reopened");
+                    tracing::info!("camera back: {description}");
+                } else {
+                    tracing::info!(
+                        "streaming {description}; intrinsics fx {:.1} fy {:.1} cx {:.1} cy {:.1}",
+                        src.intrinsics.fx,
+                        src.intrinsics.fy,
+                        src.intrinsics.cx,
+                        src.intrinsics.cy
+                    );
+                }
+                opened_once = true;
+            }
+            Ok(Some(Event::Lost { reason })) => {
+                counters.incr("camera_lost");
+                tracing::warn!("camera lost: {reason}; reopening it every second");
+            }
+            Ok(Some(Event::StillAway { reason })) => {
+                tracing::warn!("camera not back yet: {reason}");
+            }
+            Ok(Some(Event::Tilt(t))) => {
+                let level = if tilt_logged {
+                    tracing::Level::DEBUG
+                } else {
+                    tracing::Level::INFO
+                };
+                tilt_logged = true;
+                if level == tracing::Level::INFO {
+                    tracing::info!(
+                        "tilt motor {:.1} deg (status {}), accelerometer ({:.2}, {:.2}, {:.2}) m/s2",
+                        t.angle_deg,
+                        t.status,
+                        t.accel_mps2[0],
+                        t.accel_mps2[1],
+                        t.accel_mps2[2]
+                    );
+                } else {
+                    tracing::debug!(
+                        "tilt motor {:.1} deg, accelerometer {:?} m/s2",
+                        t.angle_deg,
+                        t.accel_mps2
+                    );
+                }
             }
         }
     }

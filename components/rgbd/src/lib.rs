@@ -16,6 +16,7 @@
 
 pub mod component;
 pub mod convert;
+pub mod kinect;
 pub mod playback;
 pub mod scenario;
 pub mod sim;
