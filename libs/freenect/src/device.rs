@@ -386,12 +386,16 @@ unsafe extern "C" fn on_depth(_dev: *mut Dev, data: *mut c_void, ts: u32) {
     }
     // SAFETY: `sink` points at the pumping Device's sink for the duration of its poll (set and
     // cleared around freenect_process_events on this thread); libfreenect's depth buffer holds
-    // one medium-resolution frame of 16-bit values in both formats we ask for.
+    // one medium-resolution frame of 16-bit values in both formats we ask for. It is read as
+    // bytes: fakenect hands out a pointer just past a PGM header, not aligned for `u16`.
     unsafe {
         let sink = &mut *sink;
-        let src = std::slice::from_raw_parts(data as *const u16, PIXELS);
+        let src = std::slice::from_raw_parts(data as *const u8, PIXELS * 2);
         sink.depth.clear();
-        sink.depth.extend_from_slice(src);
+        sink.depth.extend(
+            src.chunks_exact(2)
+                .map(|b| u16::from_ne_bytes([b[0], b[1]])),
+        );
         sink.depth_ts = ts;
         sink.depth_new = true;
     }

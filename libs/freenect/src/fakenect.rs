@@ -211,6 +211,9 @@ pub enum Offer {
 /// Number of frames whose files are kept in a live dump (older ones are removed).
 pub const LIVE_KEEP_FRAMES: usize = 30;
 
+/// Sample files of a previous stream older than this are removed when a live dump is created.
+pub const STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// A live dump folder whose `INDEX.txt` is a FIFO: frames go to a fakenect reader as they are
 /// offered.
 #[derive(Debug)]
@@ -222,15 +225,22 @@ pub struct LiveDump {
 }
 
 impl LiveDump {
-    /// Creates `dir` and the FIFO `dir/INDEX.txt` (replacing whatever was there) and removes old
-    /// sample files.
+    /// Creates `dir` and the FIFO `dir/INDEX.txt` (replacing whatever was there) and removes
+    /// sample files more than [`STALE_AFTER`] old (a reader of a previous stream may still need
+    /// the newest ones).
     pub fn create(dir: &Path) -> Result<LiveDump, DumpError> {
         std::fs::create_dir_all(dir).map_err(io_err(dir))?;
         for entry in std::fs::read_dir(dir).map_err(io_err(dir))?.flatten() {
             let name = entry.file_name();
             let name = name.to_string_lossy();
             let sample = [".ppm", ".pgm", ".dump"].iter().any(|e| name.ends_with(e));
-            if name == "INDEX.txt" || sample {
+            let stale = entry
+                .metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age > STALE_AFTER);
+            if name == "INDEX.txt" || (sample && stale) {
                 let _ = std::fs::remove_file(entry.path());
             }
         }
@@ -345,7 +355,13 @@ impl LiveDump {
 }
 
 impl Drop for LiveDump {
+    /// Removes the FIFO and the sample files but the two newest frames', which the reader may
+    /// still be about to open (it reads the FIFO through a stdio buffer, so an empty pipe can
+    /// still mean one frame's lines not yet acted on; fakenect ends its process when a listed
+    /// file is missing); the next live dump in the folder removes those once they are stale.
     fn drop(&mut self) {
+        let _ = self.kept.pop_back();
+        let _ = self.kept.pop_back();
         for f in self.kept.drain(..).flatten() {
             let _ = std::fs::remove_file(f);
         }
@@ -463,6 +479,11 @@ mod tests {
         );
         drop(live);
         assert!(!dir.join("INDEX.txt").exists());
+        let left = std::fs::read_dir(&dir).unwrap().count();
+        assert_eq!(
+            left, 4,
+            "the two newest frames' files stay for a late reader"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
