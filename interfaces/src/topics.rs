@@ -88,6 +88,9 @@ pub const GAME_ANSWER: Topic<crate::msg::command::Answer> = Topic::new("game/ans
 /// Registered RGB-D frames of the head camera (the `rgbd` component), about 1.5 MB each at
 /// 640x480: shared memory on one host.
 pub const VISION_RGBD: Topic<crate::msg::vision::RgbdFrame> = Topic::new("vision/rgbd");
+/// The head camera's health (the `rgbd` component's hardware drivers): streaming or not, and why.
+pub const VISION_CAMERA_STATUS: Topic<crate::msg::vision::CameraStatus> =
+    Topic::new("vision/camera_status");
 /// What the ball tracker looks for (colour, size); `active = false` clears it.
 pub const VISION_BALL_TARGET: Topic<crate::msg::tracking::BallTarget> =
     Topic::new("vision/ball_target");

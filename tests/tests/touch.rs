@@ -240,6 +240,32 @@ async fn touch_a_still_ball_seen_through_libfreenect() {
     );
 }
 
+/// The camera dies mid-game (the simulated Kinect is killed: the driver's stream ends as a
+/// device's does when it is unplugged): the robot says it cannot see, the driver reopens the
+/// camera once the launcher has restarted it, and the game carries on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_camera_lost_mid_game_is_said_and_the_game_carries_on() {
+    let dump = scratch(&unique_namespace("touch-kinect-lost")).join("kinect");
+    let dump = format!("kinect_dump={}", dump.display());
+    let game = play_with(
+        "tracker_restart",
+        &["--profile=fakenect", &dump],
+        Duration::from_secs(200),
+        Some(("person: sees gaze within", "kinect_sim")),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    assert!(game.said_any("can't see"), "{:?}", game.said);
+    assert!(game.said_any("can see again"), "{:?}", game.said);
+    assert!(
+        game.output.iter().any(|l| l.contains("camera back")),
+        "the driver did not reopen the camera"
+    );
+    game.entered_in_order(&["tracking", "searching", "tracking", "reaching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn touch_a_moving_ball() {
     let game = play("moving", &[], Duration::from_secs(180)).await;

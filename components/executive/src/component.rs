@@ -94,6 +94,7 @@ pub fn interface(game: GameKind) -> Interface {
             .subscribes(&topics::VISION_BALL)
             .subscribes(&topics::BODY_REACH_STATUS)
             .subscribes(&topics::SPEECH_SPEAKING)
+            .subscribes(&topics::VISION_CAMERA_STATUS)
             .publishes(&topics::SPEECH_SAY)
             .publishes(&topics::VISION_BALL_TARGET)
             .publishes(&topics::BODY_REACH)
@@ -405,6 +406,35 @@ impl TrackerWatch {
     }
 }
 
+/// Follows `vision/camera_status`: the robot says when its camera stops, and when it is back.
+#[derive(Debug, Default)]
+struct CameraWatch {
+    streaming: Option<bool>,
+}
+
+/// What the robot says when its camera stops delivering.
+pub const CANNOT_SEE: &str = "I can't see: my camera stopped. Give me a moment.";
+/// What it says when the camera is back.
+pub const SEE_AGAIN: &str = "I can see again.";
+
+impl CameraWatch {
+    /// On a change of the camera's state: what to say, and what to log.
+    fn update(
+        &mut self,
+        s: &interfaces::msg::vision::CameraStatus,
+    ) -> Option<(&'static str, String)> {
+        let before = self.streaming.replace(s.streaming);
+        match (before, s.streaming) {
+            (Some(true) | None, false) => Some((
+                CANNOT_SEE,
+                format!("the camera stopped ({}): {}", s.driver, s.detail),
+            )),
+            (Some(false), true) => Some((SEE_AGAIN, format!("the camera is back: {}", s.detail))),
+            _ => None,
+        }
+    }
+}
+
 /// Whether the game's eyes need the tracker to have a target.
 fn wants_tracker(game: &TouchGame) -> bool {
     let m = game.machine();
@@ -434,6 +464,19 @@ struct TouchOut {
 }
 
 impl TouchOut {
+    /// Says `text` at once (outside the game's machine: what the robot tells about itself).
+    async fn say_now(&mut self, text: &str) -> anyhow::Result<()> {
+        self.say_id += 1;
+        let mut r = SayRequest {
+            id: self.say_id,
+            text: text.into(),
+            priority: interfaces::msg::speech::Priority::High,
+            ..Default::default()
+        };
+        self.say.publish(&mut r).await?;
+        Ok(())
+    }
+
     async fn log_line(&mut self, l: LogLine) -> anyhow::Result<()> {
         if l.distance_m >= 0.0 {
             tracing::info!("[{}] {} ({:.3} m)", l.kind, l.text, l.distance_m);
@@ -524,6 +567,8 @@ async fn run_touch(
     let tracks = bus.subscriber(&topics::VISION_BALL).await?;
     let statuses = bus.subscriber(&topics::BODY_REACH_STATUS).await?;
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
+    let cameras = bus.subscriber(&topics::VISION_CAMERA_STATUS).await?;
+    let mut camera = CameraWatch::default();
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -592,6 +637,14 @@ async fn run_touch(
                 game.ball_track(&t, bus_now(&bus))
             }
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
+            c = cameras.recv() => {
+                let c = c?;
+                if let Some((said, log)) = camera.update(&c) {
+                    out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
+                    out.say_now(said).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
             s = speaking.recv() => {
                 let s = s?;
                 match s.state {
@@ -652,5 +705,33 @@ async fn run_touch(
             tracing::info!("the game is over: exiting");
             return Ok(());
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use interfaces::msg::vision::CameraStatus;
+
+    fn status(streaming: bool) -> CameraStatus {
+        CameraStatus {
+            driver: "freenect".into(),
+            streaming,
+            detail: "camera lost: unplugged".into(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_robot_says_once_when_its_camera_stops_and_once_when_it_is_back() {
+        let mut w = CameraWatch::default();
+        assert_eq!(w.update(&status(true)), None, "streaming from the start");
+        assert_eq!(w.update(&status(true)), None);
+        let (said, log) = w.update(&status(false)).expect("stopped");
+        assert_eq!(said, CANNOT_SEE);
+        assert!(log.contains("unplugged"), "{log}");
+        assert_eq!(w.update(&status(false)), None, "said once");
+        assert_eq!(w.update(&status(true)).map(|s| s.0), Some(SEE_AGAIN));
+        assert_eq!(w.update(&status(true)), None);
     }
 }

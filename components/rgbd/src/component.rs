@@ -47,7 +47,7 @@ use deep_representation::kinematics::RobotModel;
 use deep_representation::service::find_model;
 use interfaces::msg::body::JointStates;
 use interfaces::msg::tracking::{BallTruth, SimBall};
-use interfaces::msg::vision::RgbdFrame;
+use interfaces::msg::vision::{CameraStatus, RgbdFrame};
 use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Header, Shutdown, topics};
@@ -182,6 +182,7 @@ pub fn interface(config: &Config) -> Interface {
         i
     } else {
         i.publishes(&topics::VISION_RGBD)
+            .publishes(&topics::VISION_CAMERA_STATUS)
     };
     match config.driver {
         DriverKind::Sim => {
@@ -512,6 +513,20 @@ pub async fn run(
         Source::Sim { .. } => Some(bus.publisher(&topics::SIM_BALL_TRUTH).await?),
         Source::Playback { .. } | Source::Kinect(_) => None,
     };
+    let mut status = match &frames {
+        Some(_) => Some(StatusOut::new(
+            bus.publisher(&topics::VISION_CAMERA_STATUS).await?,
+        )),
+        None => None,
+    };
+    let driver_name = match source {
+        Source::Sim { .. } => "sim",
+        Source::Playback { .. } => "playback",
+        Source::Kinect(_) => "freenect",
+    };
+    if let Some(s) = status.as_mut() {
+        s.status.driver = driver_name.into();
+    }
     let clock = bus.clock().clone();
     let now_s = move || clock.now_ns() as f64 * 1e-9;
     match source {
@@ -605,6 +620,9 @@ pub async fn run(
                 let Some(frames) = &frames else {
                     continue;
                 };
+                if let Some(s) = status.as_mut() {
+                    s.frame(true, "the simulated camera").await?;
+                }
                 let mut msg = into_msg(frame, &config.frame_id);
                 msg.header.stamp_ns = stamp_ns;
                 frames.publish(&mut msg).await?;
@@ -658,14 +676,17 @@ pub async fn run(
                 if let Some(frames) = &frames {
                     frames.publish(&mut msg).await?;
                 }
+                if let Some(s) = status.as_mut() {
+                    s.frame(true, "a recorded sequence").await?;
+                }
                 published += 1;
             }
         }
         Source::Kinect(mut src) => {
-            let Some(frames) = frames else {
+            let (Some(frames), Some(mut status)) = (frames, status) else {
                 anyhow::bail!("--fakenect-out needs --driver sim");
             };
-            run_kinect(&bus, &config, &mut src, &frames, &mut shutdown).await
+            run_kinect(&bus, &config, &mut src, &frames, &mut status, &mut shutdown).await
         }
     }
 }
@@ -681,6 +702,7 @@ async fn run_kinect(
     config: &Config,
     src: &mut KinectSource,
     frames: &interfaces::Publisher<RgbdFrame>,
+    status: &mut StatusOut,
     shutdown: &mut Shutdown,
 ) -> anyhow::Result<()> {
     let counters = bus.counters().clone();
@@ -704,11 +726,17 @@ async fn run_kinect(
                 if !stalled && opened_once {
                     stalled = true;
                     counters.incr("camera_stalled");
+                    status.status.losses += 1;
                     tracing::warn!(
                         "no frame from the camera for {:.1} s (unplugged, or its USB link \
                          stalled): waiting for it",
                         timeout.as_secs_f64()
                     );
+                }
+                if stalled {
+                    status
+                        .change(false, "no frame from the camera: waiting for it")
+                        .await?;
                 }
             }
             Ok(None) => anyhow::bail!("the camera thread ended"),
@@ -738,8 +766,11 @@ async fn run_kinect(
                 let mut msg = into_msg(*frame, &config.frame_id);
                 msg.header.stamp_ns = bus.clock().now_ns() - age_ns;
                 frames.publish(&mut msg).await?;
+                let detail = status.streaming_detail.clone();
+                status.frame(true, &detail).await?;
             }
             Ok(Some(Event::Opened { description })) => {
+                status.streaming_detail = description.clone();
                 if opened_once {
                     counters.incr("camera_reopened");
                     tracing::info!("camera back: {description}");
@@ -756,7 +787,14 @@ async fn run_kinect(
             }
             Ok(Some(Event::Lost { reason })) => {
                 counters.incr("camera_lost");
+                if !stalled {
+                    status.status.losses += 1;
+                }
+                stalled = true;
                 tracing::warn!("camera lost: {reason}; reopening it every second");
+                status
+                    .change(false, &format!("camera lost: {reason}"))
+                    .await?;
             }
             Ok(Some(Event::StillAway { reason })) => {
                 tracing::warn!("camera not back yet: {reason}");
@@ -786,5 +824,51 @@ async fn run_kinect(
                 }
             }
         }
+    }
+}
+
+/// `vision/camera_status`: published on every change, and once a second while nothing changes.
+struct StatusOut {
+    publisher: interfaces::Publisher<CameraStatus>,
+    status: CameraStatus,
+    last: Option<std::time::Instant>,
+    /// What streams, said while frames come.
+    streaming_detail: String,
+}
+
+impl StatusOut {
+    fn new(publisher: interfaces::Publisher<CameraStatus>) -> StatusOut {
+        StatusOut {
+            publisher,
+            status: CameraStatus::default(),
+            last: None,
+            streaming_detail: String::new(),
+        }
+    }
+
+    /// Sets the state; publishes when it changed or a second has passed.
+    async fn change(&mut self, streaming: bool, detail: &str) -> anyhow::Result<()> {
+        let changed = self.last.is_none()
+            || self.status.streaming != streaming
+            || self.status.detail != detail;
+        self.status.streaming = streaming;
+        if changed {
+            self.status.detail = detail.to_string();
+        }
+        let due = self
+            .last
+            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+        if changed || due {
+            self.last = Some(std::time::Instant::now());
+            self.status.header.stamp_ns = 0;
+            self.publisher.publish(&mut self.status).await?;
+        }
+        Ok(())
+    }
+
+    /// A frame was published.
+    async fn frame(&mut self, streaming: bool, detail: &str) -> anyhow::Result<()> {
+        self.status.frames += 1;
+        self.change(streaming, detail).await
     }
 }

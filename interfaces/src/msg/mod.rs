@@ -115,6 +115,7 @@ messages! {
     std_msgs::Counter64 => "robocog.Counter64",
     diag::Diagnostics => "robocog.Diagnostics",
     vision::RgbdFrame => "robocog.RgbdFrame",
+    vision::CameraStatus => "robocog.CameraStatus",
     tracking::BallTarget => "robocog.BallTarget",
     tracking::BallTrack => "robocog.BallTrack",
     tracking::BallEvent => "robocog.BallEvent",

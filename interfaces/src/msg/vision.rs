@@ -59,3 +59,21 @@ impl RgbdFrame {
         ]))
     }
 }
+
+/// The head camera's health, from the `rgbd` component's hardware drivers (`freenect`): on every
+/// change (streaming, lost, stalled, back) and once a second. The simulated and playback drivers
+/// do not publish it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraStatus {
+    pub header: Header,
+    /// The driver (`freenect`).
+    pub driver: String,
+    /// Frames are coming.
+    pub streaming: bool,
+    /// What streams (device, library, depth format), or why nothing does.
+    pub detail: String,
+    /// Frames published since the component started.
+    pub frames: u64,
+    /// Times the device was lost since the component started.
+    pub losses: u64,
+}
