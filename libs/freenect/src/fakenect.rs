@@ -225,9 +225,9 @@ pub struct LiveDump {
 }
 
 impl LiveDump {
-    /// Creates `dir` and the FIFO `dir/INDEX.txt` (replacing whatever was there) and removes
-    /// sample files more than [`STALE_AFTER`] old (a reader of a previous stream may still need
-    /// the newest ones).
+    /// Creates `dir` and the FIFO `dir/INDEX.txt` (replacing a file of that name that is not a
+    /// FIFO) and removes sample files more than [`STALE_AFTER`] old (a reader of a previous
+    /// stream may still need the newest ones).
     pub fn create(dir: &Path) -> Result<LiveDump, DumpError> {
         std::fs::create_dir_all(dir).map_err(io_err(dir))?;
         for entry in std::fs::read_dir(dir).map_err(io_err(dir))?.flatten() {
@@ -240,17 +240,25 @@ impl LiveDump {
                 .ok()
                 .and_then(|t| t.elapsed().ok())
                 .is_none_or(|age| age > STALE_AFTER);
-            if name == "INDEX.txt" || (sample && stale) {
+            if sample && stale {
                 let _ = std::fs::remove_file(entry.path());
             }
         }
+        // A FIFO left by a writer that died is reused: a reader may already be waiting on it
+        // (a new FIFO in its place would leave that reader blocked forever).
         let fifo = dir.join("INDEX.txt");
-        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::from_bits_truncate(0o644)).map_err(
-            |e| DumpError::Io {
-                path: fifo.clone(),
-                source: e.into(),
-            },
-        )?;
+        let is_fifo = std::fs::symlink_metadata(&fifo)
+            .map(|m| std::os::unix::fs::FileTypeExt::is_fifo(&m.file_type()))
+            .unwrap_or(false);
+        if !is_fifo {
+            let _ = std::fs::remove_file(&fifo);
+            nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::from_bits_truncate(0o644)).map_err(
+                |e| DumpError::Io {
+                    path: fifo.clone(),
+                    source: e.into(),
+                },
+            )?;
+        }
         Ok(LiveDump {
             dir: dir.to_path_buf(),
             fifo,
