@@ -26,6 +26,31 @@ pub fn bin(name: &str) -> PathBuf {
     p
 }
 
+/// A simulated Kinect's live fakenect dump folder for one test, in shared memory (`/dev/shm`):
+/// 45 MB/s of frame files written and removed do not belong on a disk. Removed when dropped.
+pub struct KinectDump {
+    pub path: PathBuf,
+}
+
+/// A fresh [`KinectDump`] named after `tag`.
+pub fn kinect_dump(tag: &str) -> KinectDump {
+    let root = Path::new("/dev/shm");
+    let base = if root.is_dir() {
+        root.to_path_buf()
+    } else {
+        std::env::temp_dir()
+    };
+    let path = base.join(format!("robocog-{}", unique_namespace(tag)));
+    std::fs::create_dir_all(&path).expect("kinect dump dir");
+    KinectDump { path }
+}
+
+impl Drop for KinectDump {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
 /// A namespace no other test (or deployment) uses.
 pub fn unique_namespace(tag: &str) -> String {
     static N: AtomicU32 = AtomicU32::new(0);

@@ -141,7 +141,7 @@ fn a_called_service_declared_external_is_accepted() {
 name = "executive"
 binary = "executive"
 args = ["--game", "touch"]
-external_inputs = ["game/command", "vision/ball_events", "vision/ball", "body/reach_status", "speech/speaking"{external}]
+external_inputs = ["game/command", "vision/ball_events", "vision/ball", "body/reach_status", "speech/speaking", "vision/camera_status"{external}]
 "#
         )
     };

@@ -36,7 +36,7 @@ name = "executive"
 binary = "executive"
 args = ["--game", "touch", "--settings", "@SETTINGS@"]
 depends_on = ["deep_representation", "joint_motor"]
-external_inputs = ["game/command", "vision/ball_events", "vision/ball", "body/reach_status", "speech/speaking"]
+external_inputs = ["game/command", "vision/ball_events", "vision/ball", "body/reach_status", "speech/speaking", "vision/camera_status"]
 "#;
 
 /// Short delays so the test runs in seconds.

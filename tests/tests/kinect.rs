@@ -25,18 +25,19 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// `launch/eyes_kinect.toml` (simulated Kinect, fakenect, tracker) on a fresh namespace, its live
 /// dump in the test's scratch folder, and a test bus joined to it.
-async fn eyes_kinect(tag: &str) -> (Launch, Bus) {
+async fn eyes_kinect(tag: &str) -> (Launch, Bus, KinectDump) {
     let ns = unique_namespace(tag);
-    let dump = format!("kinect_dump={}", scratch(&ns).join("kinect").display());
+    let dump = kinect_dump(tag);
+    let set = format!("kinect_dump={}", dump.path.display());
     let launch = Launch::start(
         &repo().join("launch/eyes_kinect.toml"),
         &ns,
-        &["--set", &dump],
+        &["--set", &set],
     );
     let bus = Bus::open(&launch.connect_args(), "test-kinect")
         .await
         .unwrap();
-    (launch, bus)
+    (launch, bus, dump)
 }
 
 /// Tracks until `n` or `timeout` (panics with the graph's output then).
@@ -59,7 +60,7 @@ async fn tracks(bus: &Bus, launch: &Launch, n: usize, timeout: Duration) -> Vec<
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_still_ball_seen_through_fakenect_is_tracked_at_the_truth() {
-    let (launch, bus) = eyes_kinect("kinect-still").await;
+    let (launch, bus, _dump) = eyes_kinect("kinect-still").await;
     let truths = bus.subscriber(&topics::SIM_BALL_TRUTH).await.unwrap();
     let frames = bus.subscriber(&topics::VISION_RGBD).await.unwrap();
     let truth: BallTruth = truths
@@ -138,7 +139,7 @@ async fn a_still_ball_seen_through_fakenect_is_tracked_at_the_truth() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_camera_lost_mid_stream_is_reported_and_reopened() {
-    let (launch, bus) = eyes_kinect("kinect-lost").await;
+    let (launch, bus, _dump) = eyes_kinect("kinect-lost").await;
     tracks(&bus, &launch, 10, Duration::from_secs(60)).await;
     // The simulated Kinect dies: its end of the dump closes, as a device's USB link does when it
     // is unplugged. The driver says so and reopens the library; the launcher restarts the

@@ -407,10 +407,18 @@ impl TrackerWatch {
 }
 
 /// Follows `vision/camera_status`: the robot says when its camera stops, and when it is back.
+/// A camera that flaps (stops and comes back again and again) is announced once per
+/// [`CAMERA_REPEAT`]; every change is logged.
 #[derive(Debug, Default)]
 struct CameraWatch {
     streaming: Option<bool>,
+    /// When "cannot see" was last said; "see again" is said only after it.
+    said_lost: Option<tokio::time::Instant>,
+    lost_pending: bool,
 }
+
+/// At most one "I can't see" in this long.
+const CAMERA_REPEAT: Duration = Duration::from_secs(20);
 
 /// What the robot says when its camera stops delivering.
 pub const CANNOT_SEE: &str = "I can't see: my camera stopped. Give me a moment.";
@@ -418,18 +426,32 @@ pub const CANNOT_SEE: &str = "I can't see: my camera stopped. Give me a moment."
 pub const SEE_AGAIN: &str = "I can see again.";
 
 impl CameraWatch {
-    /// On a change of the camera's state: what to say, and what to log.
+    /// On a change of the camera's state at `now`: what to log, and what to say (if anything).
     fn update(
         &mut self,
         s: &interfaces::msg::vision::CameraStatus,
-    ) -> Option<(&'static str, String)> {
+        now: tokio::time::Instant,
+    ) -> Option<(Option<&'static str>, String)> {
         let before = self.streaming.replace(s.streaming);
         match (before, s.streaming) {
-            (Some(true) | None, false) => Some((
-                CANNOT_SEE,
-                format!("the camera stopped ({}): {}", s.driver, s.detail),
-            )),
-            (Some(false), true) => Some((SEE_AGAIN, format!("the camera is back: {}", s.detail))),
+            (Some(true) | None, false) => {
+                let log = format!("the camera stopped ({}): {}", s.driver, s.detail);
+                let say = self
+                    .said_lost
+                    .is_none_or(|t| now.duration_since(t) >= CAMERA_REPEAT);
+                if say {
+                    self.said_lost = Some(now);
+                    self.lost_pending = true;
+                }
+                Some((say.then_some(CANNOT_SEE), log))
+            }
+            (Some(false), true) => {
+                let say = std::mem::take(&mut self.lost_pending);
+                Some((
+                    say.then_some(SEE_AGAIN),
+                    format!("the camera is back: {}", s.detail),
+                ))
+            }
             _ => None,
         }
     }
@@ -639,9 +661,11 @@ async fn run_touch(
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
             c = cameras.recv() => {
                 let c = c?;
-                if let Some((said, log)) = camera.update(&c) {
+                if let Some((said, log)) = camera.update(&c, tokio::time::Instant::now()) {
                     out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
-                    out.say_now(said).await?;
+                    if let Some(said) = said {
+                        out.say_now(said).await?;
+                    }
                 }
                 game.advance(bus_now(&bus))
             }
@@ -724,14 +748,27 @@ mod tests {
 
     #[test]
     fn the_robot_says_once_when_its_camera_stops_and_once_when_it_is_back() {
+        let t0 = tokio::time::Instant::now();
+        let at = |s: u64| t0 + Duration::from_secs(s);
         let mut w = CameraWatch::default();
-        assert_eq!(w.update(&status(true)), None, "streaming from the start");
-        assert_eq!(w.update(&status(true)), None);
-        let (said, log) = w.update(&status(false)).expect("stopped");
-        assert_eq!(said, CANNOT_SEE);
+        assert_eq!(
+            w.update(&status(true), at(0)),
+            None,
+            "streaming from the start"
+        );
+        assert_eq!(w.update(&status(true), at(1)), None);
+        let (said, log) = w.update(&status(false), at(2)).expect("stopped");
+        assert_eq!(said, Some(CANNOT_SEE));
         assert!(log.contains("unplugged"), "{log}");
-        assert_eq!(w.update(&status(false)), None, "said once");
-        assert_eq!(w.update(&status(true)).map(|s| s.0), Some(SEE_AGAIN));
-        assert_eq!(w.update(&status(true)), None);
+        assert_eq!(w.update(&status(false), at(3)), None, "said once");
+        assert_eq!(w.update(&status(true), at(4)).unwrap().0, Some(SEE_AGAIN));
+        assert_eq!(w.update(&status(true), at(5)), None);
+        // A flapping camera: logged every time, said again only after CAMERA_REPEAT.
+        let (said, _) = w.update(&status(false), at(6)).unwrap();
+        assert_eq!(said, None);
+        assert_eq!(w.update(&status(true), at(7)).unwrap().0, None);
+        let (said, _) = w.update(&status(false), at(2 + 20)).unwrap();
+        assert_eq!(said, Some(CANNOT_SEE));
+        assert_eq!(w.update(&status(true), at(23)).unwrap().0, Some(SEE_AGAIN));
     }
 }

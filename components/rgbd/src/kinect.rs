@@ -498,7 +498,7 @@ impl KinectSim {
         let device_ts = ((time_s * 1e6) as u64 & 0xffff_ffff) as u32;
         let offer = self
             .dump
-            .offer(time_s, device_ts, &frame.rgb, &self.raw, Some(&tilt))?;
+            .offer(device_ts, &frame.rgb, &self.raw, Some(&tilt))?;
         match offer {
             Offer::Sent => {
                 self.sent += 1;

@@ -19,7 +19,10 @@
 //! driver reading through fakenect gets frames as the simulated device renders them. A frame
 //! offered while the reader has not yet taken the previous lines is dropped (counted), as a real
 //! camera drops frames the host does not collect: the files of the last few frames are kept and
-//! older ones removed, so the folder stays small.
+//! older ones removed, so the folder stays small. fakenect sleeps between two samples what their
+//! recorded times say, less the time it has spent since the previous one; for a live source that
+//! sleep only piles up delay (the reader waits for the writer anyway, then waits again), so a
+//! live dump records its samples a microsecond apart and the FIFO alone paces the stream.
 
 use std::collections::VecDeque;
 use std::fs::File;
@@ -222,6 +225,8 @@ pub struct LiveDump {
     fifo: PathBuf,
     writer: Option<File>,
     kept: VecDeque<Vec<PathBuf>>,
+    /// The time written into the next sample's name (s): a microsecond a frame.
+    clock_s: f64,
 }
 
 impl LiveDump {
@@ -264,6 +269,7 @@ impl LiveDump {
             fifo,
             writer: None,
             kept: VecDeque::new(),
+            clock_s: 1.0,
         })
     }
 
@@ -298,11 +304,10 @@ impl LiveDump {
         }
     }
 
-    /// Offers one frame (colour, depth as raw disparities, and optionally the tilt state) at host
-    /// time `time_s` with the device timestamp `device_ts`.
+    /// Offers one frame (colour, depth as raw disparities, and optionally the tilt state) with the
+    /// device timestamp `device_ts`.
     pub fn offer(
         &mut self,
-        time_s: f64,
         device_ts: u32,
         rgb: &[u8],
         raw_depth: &[u16],
@@ -324,6 +329,8 @@ impl LiveDump {
         if behind {
             return Ok(Offer::ReaderBehind);
         }
+        self.clock_s += 1e-6;
+        let time_s = self.clock_s;
         let mut lines = String::new();
         let mut samples = vec![
             (file_name('r', time_s, device_ts), rgb),
@@ -448,7 +455,7 @@ mod tests {
         let rgb = vec![1u8; PIXELS * 3];
         let raw = vec![900u16; PIXELS];
         assert_eq!(
-            live.offer(0.0, 0, &rgb, &raw, None).unwrap(),
+            live.offer(0, &rgb, &raw, None).unwrap(),
             Offer::NoReader
         );
         let reader = std::fs::OpenOptions::new()
@@ -456,25 +463,25 @@ mod tests {
             .custom_flags_nonblock()
             .open(dir.join("INDEX.txt"))
             .unwrap();
-        assert_eq!(live.offer(0.1, 1, &rgb, &raw, None).unwrap(), Offer::Sent);
+        assert_eq!(live.offer(1, &rgb, &raw, None).unwrap(), Offer::Sent);
         assert_eq!(
-            live.offer(0.2, 2, &rgb, &raw, None).unwrap(),
+            live.offer(2, &rgb, &raw, None).unwrap(),
             Offer::ReaderBehind
         );
         let mut r = BufReader::new(reader);
         let mut line = String::new();
         r.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "r-0.100000-1.ppm");
+        assert_eq!(line.trim(), "r-1.000001-1.ppm");
         assert!(dir.join(line.trim()).exists());
         line.clear();
         r.read_line(&mut line).unwrap();
-        assert_eq!(line.trim(), "d-0.100000-1.pgm");
-        assert_eq!(live.offer(0.3, 3, &rgb, &raw, None).unwrap(), Offer::Sent);
+        assert_eq!(line.trim(), "d-1.000001-1.pgm");
+        assert_eq!(live.offer(3, &rgb, &raw, None).unwrap(), Offer::Sent);
         // Old files are removed once more than LIVE_KEEP_FRAMES frames were sent.
         let mut rest = Vec::new();
         for i in 0..LIVE_KEEP_FRAMES + 2 {
             r.read_to_end(&mut rest).ok();
-            live.offer(1.0 + i as f64, 10 + i as u32, &rgb, &raw, None)
+            live.offer(10 + i as u32, &rgb, &raw, None)
                 .unwrap();
         }
         let files = std::fs::read_dir(&dir).unwrap().count();
@@ -482,7 +489,7 @@ mod tests {
         // The reader closes: the next offer finds no reader and does not fail.
         drop(r);
         assert_eq!(
-            live.offer(99.0, 99, &rgb, &raw, None).unwrap(),
+            live.offer(99, &rgb, &raw, None).unwrap(),
             Offer::NoReader
         );
         drop(live);
