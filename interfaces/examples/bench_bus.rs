@@ -7,14 +7,24 @@
 //!   640x480 RGB-D frame (RGB8 + u16 depth, 1.5 MB). Typed: `Publisher<T>`/`Subscriber<T>` with
 //!   CDR and shared memory for large payloads. Raw: `put` of the same bytes and a plain (default
 //!   FIFO) subscriber, shared memory left to zenoh's defaults.
+//! - The RGB-D frame as a consumer reads it: the sender publishes an `RgbdFrame` (encoded into
+//!   shared memory), the echo forwards it (`Publisher::relay`; raw: `put` of the received
+//!   payload), and the sender takes it back with `Subscriber::recv_borrowed`, checks its sizes and
+//!   reads every byte of the colour and depth buffers in place. Raw reads every byte of its
+//!   payload the same way. Two more typed rows for reference, against the same raw round trip:
+//!   the echo re-publishes the frame from its view (`publish_view`: one copy into a new
+//!   shared-memory buffer), and the owned path (`recv` decodes into an owned `RgbdFrame` at both
+//!   ends and the echo publishes it again: a copy out and a copy in at each hop).
+//! - Where a frame's time goes: each step of the typed path timed alone (encode into a buffer,
+//!   owned decode, decode of the view, reading the pixels), medians of 200.
 //! - Throughput: 8-byte payloads (raw) and `Counter64` messages (typed, 8 bytes of value plus
 //!   the header), as fast as the sender can put them, counted at the receiver.
 //!
 //! The last line printed is one JSON object with every figure.
 
 use interfaces::msg::std_msgs::{Counter64, Ping};
-use interfaces::msg::vision::{Intrinsics, RgbdFrame};
-use interfaces::{Bus, ConnectArgs, topics};
+use interfaces::msg::vision::{Intrinsics, RgbdFrame, RgbdFrameView};
+use interfaces::{Bus, ConnectArgs, Message, codec, topics};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -115,7 +125,9 @@ impl RawPair {
         })
     }
 
-    async fn once(&self, payload: &[u8]) -> anyhow::Result<f64> {
+    /// One-way latency (µs) of one round trip of `payload`; with `read`, every byte of the
+    /// echoed payload is read, as a consumer of a frame reads its pixels.
+    async fn once(&self, payload: &[u8], read: bool) -> anyhow::Result<f64> {
         let t = Instant::now();
         self.publisher
             .put(payload.to_vec())
@@ -126,6 +138,10 @@ impl RawPair {
             .map_err(|_| anyhow::anyhow!("raw ping lost"))?
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         anyhow::ensure!(s.payload().len() == payload.len(), "echo of the wrong size");
+        if read {
+            let sum: u64 = s.payload().slices().map(touch).sum();
+            std::hint::black_box(sum);
+        }
         Ok(t.elapsed().as_secs_f64() * 1e6 / 2.0)
     }
 }
@@ -136,8 +152,44 @@ impl Drop for RawPair {
     }
 }
 
-/// Typed and raw round trips of `size` bytes, interleaved one for one so both see the same
-/// machine load; returns (typed, raw).
+/// Reads every byte once (a sum the optimiser cannot drop, eight bytes at a time, so it runs at
+/// memory speed), as a consumer scanning the pixels must at least.
+fn touch(bytes: &[u8]) -> u64 {
+    let words = bytes.chunks_exact(8);
+    let tail: u64 = words.remainder().iter().map(|&b| u64::from(b)).sum();
+    words.fold(tail, |acc, w| {
+        acc.wrapping_add(u64::from_le_bytes([
+            w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7],
+        ]))
+    })
+}
+
+/// `typed` and `raw` round trips interleaved one for one, so both see the same machine load;
+/// after a warm-up, `n` of each. Returns (typed, raw).
+async fn interleave(
+    mut typed: impl AsyncFnMut() -> anyhow::Result<f64>,
+    mut raw: impl AsyncFnMut() -> anyhow::Result<f64>,
+    n: usize,
+) -> anyhow::Result<(Lat, Lat)> {
+    let warm = (n / 10).max(5);
+    let (mut t, mut r) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for i in 0..n + warm {
+        let (ti, ri) = if i % 2 == 0 {
+            let ti = typed().await?;
+            (ti, raw().await?)
+        } else {
+            let ri = raw().await?;
+            (typed().await?, ri)
+        };
+        if i >= warm {
+            t.push(ti);
+            r.push(ri);
+        }
+    }
+    Ok((summarise(t), summarise(r)))
+}
+
+/// Typed and raw round trips of `size` bytes; returns (typed, raw).
 async fn latency_pair<T: interfaces::Message>(
     a: &Bus,
     b: &Bus,
@@ -150,22 +202,169 @@ async fn latency_pair<T: interfaces::Message>(
     let rp = RawPair::new(a.session(), b.session(), &raw_size.to_string()).await?;
     tokio::time::sleep(Duration::from_millis(300)).await;
     let payload = vec![0xabu8; raw_size];
-    let warm = (n / 10).max(5);
-    let (mut t, mut r) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for i in 0..n + warm {
-        let (ti, ri) = if i % 2 == 0 {
-            let ti = tp.once(&mut msg).await?;
-            (ti, rp.once(&payload).await?)
-        } else {
-            let ri = rp.once(&payload).await?;
-            (tp.once(&mut msg).await?, ri)
-        };
-        if i >= warm {
-            t.push(ti);
-            r.push(ri);
+    interleave(
+        async || tp.once(&mut msg).await,
+        async || rp.once(&payload, false).await,
+        n,
+    )
+    .await
+}
+
+/// What the echo of the typed frame round trip does with the frame it receives.
+#[derive(Clone, Copy)]
+enum Echo {
+    /// Forwards the received payload as it is (`Publisher::relay`), as the raw echo does.
+    Relay,
+    /// Publishes the frame again from its borrowed view (`publish_view`): one copy.
+    Republish,
+}
+
+/// The typed RGB-D round trip read in place: publish, echo, `recv_borrowed`, read the pixels.
+struct FramePair {
+    publisher: interfaces::Publisher<RgbdFrame>,
+    back: interfaces::Subscriber<RgbdFrame>,
+    echo: tokio::task::JoinHandle<()>,
+}
+
+impl FramePair {
+    async fn new(a: &Bus, b: &Bus, mode: Echo) -> anyhow::Result<Self> {
+        let back_pub = b.publisher(&topics::BENCH_FRAME_BACK).await?;
+        let sub = b.subscriber(&topics::BENCH_FRAME).await?;
+        let echo = tokio::spawn(async move {
+            while let Ok(frame) = sub.recv_borrowed().await {
+                let sent = match mode {
+                    Echo::Relay => back_pub.relay(&frame).await,
+                    Echo::Republish => back_pub.publish_view(&mut frame.view()).await,
+                };
+                if sent.is_err() {
+                    return;
+                }
+            }
+        });
+        Ok(Self {
+            publisher: a.publisher(&topics::BENCH_FRAME).await?,
+            back: a.subscriber(&topics::BENCH_FRAME_BACK).await?,
+            echo,
+        })
+    }
+
+    async fn once(&self, frame: &mut RgbdFrame) -> anyhow::Result<f64> {
+        let t = Instant::now();
+        self.publisher.publish(frame).await?;
+        let got = tokio::time::timeout(Duration::from_secs(5), self.back.recv_borrowed())
+            .await
+            .map_err(|_| anyhow::anyhow!("typed frame lost"))??;
+        let view = got.view();
+        anyhow::ensure!(view.is_consistent(), "echo of an inconsistent frame");
+        std::hint::black_box(touch(view.rgb) + touch(view.depth_mm));
+        Ok(t.elapsed().as_secs_f64() * 1e6 / 2.0)
+    }
+}
+
+impl Drop for FramePair {
+    fn drop(&mut self) {
+        self.echo.abort();
+    }
+}
+
+/// The frame round trips, typed (`typed`: a frame pair, or `None` for the owned path) and raw
+/// (reading every byte), interleaved; returns (typed, raw).
+async fn frame_latency(
+    a: &Bus,
+    b: &Bus,
+    mode: Option<Echo>,
+    mut frame: RgbdFrame,
+    tag: &str,
+    n: usize,
+) -> anyhow::Result<(Lat, Lat)> {
+    let raw_size = codec::encoded_len(&frame);
+    let rp = RawPair::new(a.session(), b.session(), tag).await?;
+    let payload = vec![0xabu8; raw_size];
+    match mode {
+        Some(mode) => {
+            let fp = FramePair::new(a, b, mode).await?;
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            interleave(
+                async || fp.once(&mut frame).await,
+                async || rp.once(&payload, true).await,
+                n,
+            )
+            .await
+        }
+        None => {
+            let tp = TypedPair::new(a, b, &topics::BENCH_FRAME, &topics::BENCH_FRAME_BACK).await?;
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            interleave(
+                async || tp.once(&mut frame).await,
+                async || rp.once(&payload, true).await,
+                n,
+            )
+            .await
         }
     }
-    Ok((summarise(t), summarise(r)))
+}
+
+/// Median time (µs) of `f` over `n` runs.
+fn median_us(n: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..n)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    t.sort_by(|a, b| a.total_cmp(b));
+    pct(&t, 0.5)
+}
+
+/// Each step of the typed frame path alone, in µs (medians): where a frame's time goes.
+fn frame_steps(frame: &RgbdFrame) -> anyhow::Result<Vec<(&'static str, &'static str, f64)>> {
+    const N: usize = 200;
+    let len = codec::encoded_len(frame);
+    let mut buf = vec![0u8; len];
+    let encode = median_us(N, || {
+        let r = codec::encode_into(frame, &mut buf, RgbdFrame::TYPE_NAME);
+        std::hint::black_box(r.is_ok());
+    });
+    let bytes = codec::encode(frame, RgbdFrame::TYPE_NAME)?;
+    let owned = median_us(N, || {
+        let r = codec::decode::<RgbdFrame>(&bytes, RgbdFrame::TYPE_NAME);
+        std::hint::black_box(r.map(|f| f.rgb.len()).ok());
+    });
+    let owned_cdr = median_us(N, || {
+        let r = cdr::deserialize::<RgbdFrame>(&bytes);
+        std::hint::black_box(r.map(|f| f.rgb.len()).ok());
+    });
+    let view = median_us(N, || {
+        let r = codec::decode_borrowed::<RgbdFrameView<'_>>(&bytes, RgbdFrame::TYPE_NAME);
+        std::hint::black_box(r.map(|f| f.rgb.len()).ok());
+    });
+    let read = median_us(N, || {
+        std::hint::black_box(touch(&bytes));
+    });
+    let copy = median_us(N, || {
+        std::hint::black_box(bytes.to_vec());
+    });
+    Ok(vec![
+        (
+            "encode_into_buffer",
+            "encode into a ready buffer (`encode_into`)",
+            encode,
+        ),
+        ("decode_owned", "owned decode (`recv`)", owned),
+        (
+            "decode_owned_cdr_crate",
+            "owned decode with the cdr crate (before)",
+            owned_cdr,
+        ),
+        ("decode_view", "decode of the view (`recv_borrowed`)", view),
+        (
+            "read_all_bytes",
+            "reading every byte once (the consumer's pass)",
+            read,
+        ),
+        ("copy_to_new_vec", "one copy into a new `Vec`", copy),
+    ])
 }
 
 /// Messages per second, raw 8-byte puts.
@@ -282,7 +481,6 @@ async fn main() -> anyhow::Result<()> {
         rows.push((label.to_string(), t, r));
     }
     let n_frames = 300 / scale;
-    eprintln!("latency RGB-D frame ({n_frames} round trips each)...");
     let mut frame = RgbdFrame::blank(
         640,
         480,
@@ -294,25 +492,32 @@ async fn main() -> anyhow::Result<()> {
         },
     );
     frame.header.frame_id = "head_rgbd_optical_frame".into();
-    let raw_size = interfaces::codec::encoded_len(&frame);
-    let (t, r) = latency_pair(
-        &a,
-        &b,
-        (&topics::BENCH_FRAME, &topics::BENCH_FRAME_BACK),
-        frame,
-        raw_size,
-        n_frames,
-    )
-    .await?;
-    json.insert("typed_rgbd_p50_us".into(), t.p50_us.into());
-    json.insert("typed_rgbd_p99_us".into(), t.p99_us.into());
-    json.insert("raw_rgbd_p50_us".into(), r.p50_us.into());
-    json.insert("raw_rgbd_p99_us".into(), r.p99_us.into());
-    json.insert(
-        "ratio_rgbd_p50_typed_over_raw".into(),
-        (t.p50_us / r.p50_us).into(),
-    );
-    rows.push(("RGB-D 640x480".into(), t, r));
+    let frame_rows = [
+        ("rgbd", "RGB-D 640x480, read in place", Some(Echo::Relay)),
+        (
+            "rgbd_republish",
+            "RGB-D 640x480, read in place, echo re-publishes",
+            Some(Echo::Republish),
+        ),
+        ("rgbd_owned", "RGB-D 640x480, owned decode", None),
+    ];
+    for (key, label, mode) in frame_rows {
+        eprintln!("latency {label} ({n_frames} round trips each)...");
+        let (t, r) = frame_latency(&a, &b, mode, frame.clone(), key, n_frames).await?;
+        json.insert(format!("typed_{key}_p50_us"), t.p50_us.into());
+        json.insert(format!("typed_{key}_p99_us"), t.p99_us.into());
+        json.insert(format!("raw_{key}_p50_us"), r.p50_us.into());
+        json.insert(format!("raw_{key}_p99_us"), r.p99_us.into());
+        json.insert(
+            format!("ratio_{key}_p50_typed_over_raw"),
+            (t.p50_us / r.p50_us).into(),
+        );
+        rows.push((label.to_string(), t, r));
+    }
+    let steps = frame_steps(&frame)?;
+    for (key, _, us) in &steps {
+        json.insert(format!("frame_step_{key}_us"), (*us).into());
+    }
 
     let n_tp = 1_000_000 / scale as u64;
     eprintln!("throughput ({n_tp} messages each)...");
@@ -346,9 +551,20 @@ async fn main() -> anyhow::Result<()> {
     println!("| raw zenoh, 8-byte payload | {raw_tp:.0} |");
     println!("| typed Counter64 (8-byte value + header) | {typed_tp:.0} |");
     println!();
+    println!("| one 640x480 RGB-D frame (1.5 MB), alone | median µs |");
+    println!("|---|---:|");
+    for (_, label, us) in &steps {
+        println!("| {label} | {us:.1} |");
+    }
+    println!();
     println!(
-        "targets: typed small-message latency within 1.2x of raw ({}), RGB-D p50 under 2 ms ({}), 8-byte throughput at least 1M msg/s (typed {}, raw {})",
+        "targets: typed small-message latency within 1.2x of raw ({}), typed RGB-D frame read in place within 1.2x of raw ({}), RGB-D p50 under 2 ms ({}), 8-byte throughput at least 1M msg/s (typed {}, raw {})",
         if rows[0].1.p50_us / rows[0].2.p50_us <= 1.2 {
+            "met"
+        } else {
+            "NOT met"
+        },
+        if rows[3].1.p50_us / rows[3].2.p50_us <= 1.2 {
             "met"
         } else {
             "NOT met"

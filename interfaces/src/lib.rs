@@ -30,8 +30,8 @@ pub mod topic;
 pub mod topics;
 
 pub use args::ConnectArgs;
-pub use bus::{Bus, BusError, CallError, ErrorCode, Publisher, ServiceError, Subscriber};
+pub use bus::{Bus, BusError, CallError, ErrorCode, Publisher, Received, ServiceError, Subscriber};
 pub use header::{Clock, Header};
-pub use msg::Message;
+pub use msg::{Borrowable, Message};
 pub use node::{Interface, NodeArgs, Shutdown};
 pub use topic::{Service, Topic};

@@ -4,7 +4,10 @@
 //! - `vision/rgbd` ([`RgbdFrame`]): every frame is tracked, at the frame's own stamp as the
 //!   tracker's clock (so a replayed recording tracks exactly as it did live). When frames queue
 //!   up behind a slow tracker, it jumps to the newest and counts the others (`skipped_frames`),
-//!   unless `--every-frame` (then a full queue holds the camera back, as the bus does).
+//!   unless `--every-frame` (then a full queue holds the camera back, as the bus does). Frames
+//!   are read in place (`Subscriber::recv_borrowed`): the pixels are copied once, from the
+//!   camera's shared-memory buffer into the tracker's own frame ([`rgbd::convert::from_view`]),
+//!   and a skipped frame is never copied at all.
 //! - `vision/ball_target` ([`BallTarget`]): what to look for; `active = false` clears it. The
 //!   flags `--target-hue --target-saturation --target-diameter` set one at start (a manifest's
 //!   way to give it); a message replaces it.
@@ -35,7 +38,7 @@ use std::time::{Duration, Instant};
 use interfaces::msg::tracking::{
     BallEvent, BallEventKind, BallTarget, BallTrack, BallTrackState, PixelWindow,
 };
-use interfaces::msg::vision::RgbdFrame;
+use interfaces::msg::vision::{RgbdFrame, RgbdFrameView};
 use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Header, Shutdown, topics};
@@ -176,8 +179,16 @@ impl Handler {
         &mut self,
         frame: &RgbdFrame,
     ) -> Result<(BallTrack, Vec<BallEvent>), FrameRejected> {
+        self.process_view(&frame.view())
+    }
+
+    /// Tracks one frame read in place from the bus (its buffers borrowed from the payload).
+    pub fn process_view(
+        &mut self,
+        frame: &RgbdFrameView<'_>,
+    ) -> Result<(BallTrack, Vec<BallEvent>), FrameRejected> {
         let seq = frame.header.seq;
-        let image = rgbd::convert::from_msg(frame)
+        let image = rgbd::convert::from_view(frame)
             .map_err(|source| FrameRejected::Malformed { seq, source })?;
         let out = self
             .tracker
@@ -378,14 +389,17 @@ async fn track_frames(
                     }
                 }
             }
-            frame = frames.recv() => {
+            frame = frames.recv_borrowed() => {
                 let mut frame = frame?;
                 // Behind? Track the newest frame, count the others.
-                while !config.every_frame && let Some(newer) = frames.try_recv() {
+                while !config.every_frame && let Some(newer) = frames.try_recv_borrowed() {
                     counters.incr("skipped_frames");
                     frame = newer;
                 }
-                match handler.process(&frame) {
+                let result = handler.process_view(&frame.view());
+                // The shared-memory buffer goes back to the camera's pool.
+                drop(frame);
+                match result {
                     Ok(out) if config.every_frame => {
                         // Offline evaluation: wait for the stage rather than drop a track.
                         to_stage.send(out).await?;

@@ -8,12 +8,13 @@
 //! - Frame: the message's `header.frame_id` names the camera's optical frame (z forward, x right,
 //!   y down), e.g. `head_rgbd_optical_frame` of `models/loki.urdf`.
 //!
-//! A subscriber must not trust a decoded message: [`from_msg`] checks every size (with overflow
-//! guards) and the intrinsics before anything indexes the buffers.
+//! A subscriber must not trust a decoded message: [`from_msg`] (an owned message) and
+//! [`from_view`] (a frame read in place from the bus, `Subscriber::recv_borrowed`) check every
+//! size (with overflow guards) and the intrinsics before anything indexes the buffers.
 
 use crate::types::{Frame, FrameError, Intrinsics};
 use interfaces::Header;
-use interfaces::msg::vision::{self, RgbdFrame};
+use interfaces::msg::vision::{self, RgbdFrame, RgbdFrameView};
 
 /// Largest frame accepted from the bus, pixels (a 16 Mpx camera; anything larger is garbage).
 pub const MAX_PIXELS: u64 = 1 << 24;
@@ -66,6 +67,13 @@ pub fn into_msg(frame: Frame, frame_id: &str) -> RgbdFrame {
 /// The library frame of a bus message, checked: sizes agree, intrinsics valid. Its
 /// `timestamp_s` is the header's stamp in seconds.
 pub fn from_msg(msg: &RgbdFrame) -> Result<Frame, ConvertError> {
+    from_view(&msg.view())
+}
+
+/// The library frame of a frame read in place (its buffers borrowed from the received payload),
+/// checked as [`from_msg`] does. The buffers are copied once, here, into the frame's own (the
+/// depth converted to `u16`), and nothing is copied when a check fails.
+pub fn from_view(msg: &RgbdFrameView<'_>) -> Result<Frame, ConvertError> {
     if u64::from(msg.width) * u64::from(msg.height) > MAX_PIXELS {
         return Err(ConvertError::TooLarge {
             width: msg.width,
@@ -100,7 +108,7 @@ pub fn from_msg(msg: &RgbdFrame) -> Result<Frame, ConvertError> {
     let frame = Frame {
         width: msg.width,
         height: msg.height,
-        rgb: msg.rgb.clone(),
+        rgb: msg.rgb.to_vec(),
         depth_mm: msg
             .depth_mm
             .chunks_exact(2)
@@ -153,6 +161,7 @@ mod tests {
         assert_eq!(msg.depth_at(1, 0), Some(1257));
         assert_eq!(&msg.depth_mm[2..4], &1257u16.to_le_bytes());
         let back = from_msg(&msg).unwrap();
+        assert_eq!(from_view(&msg.view()).unwrap(), back);
         assert_eq!(back.rgb, f.rgb);
         assert_eq!(back.depth_mm, f.depth_mm);
         assert_eq!(back.intrinsics, f.intrinsics);

@@ -23,7 +23,7 @@ pub mod vision;
 
 use crate::codec::{self, CodecError};
 use crate::header::Header;
-use serde::{Serialize, de::DeserializeOwned};
+use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
 /// A message type of the bus.
 pub trait Message: Serialize + DeserializeOwned + Default + Clone + Send + Sync + 'static {
@@ -32,6 +32,19 @@ pub trait Message: Serialize + DeserializeOwned + Default + Clone + Send + Sync 
     const TYPE_NAME: &'static str;
     fn header(&self) -> &Header;
     fn header_mut(&mut self) -> &mut Header;
+}
+
+/// A message that can be read in place. Its [`Borrowable::View`] is the same type on the wire, with
+/// its big byte buffers borrowed (`&'a [u8]`) instead of owned: decoded from a received payload
+/// with [`crate::codec::decode_borrowed`], the buffers point into the payload itself (the
+/// publisher's shared memory, for a camera frame), and encoding a view gives exactly the bytes of
+/// the owned message. See [`crate::bus::Subscriber::recv_borrowed`] and
+/// [`crate::bus::Publisher::publish_view`].
+pub trait Borrowable: Message {
+    /// The message with its byte buffers borrowed.
+    type View<'a>: Serialize + Deserialize<'a> + Default + std::fmt::Debug + Send + Sync;
+    /// The view's header, to stamp it.
+    fn view_header_mut<'v>(view: &'v mut Self::View<'_>) -> &'v mut Header;
 }
 
 /// What the generic tools know of a message type.
