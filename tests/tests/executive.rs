@@ -44,6 +44,7 @@ const SETTINGS: &str = r#"
 [touch]
 courtesy_delay_s = 1.0
 scan_dwell_s = 0.4
+scan_move_timeout_s = 0.4
 homing_s = 0.5
 "#;
 
@@ -204,7 +205,7 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
         (first.body_part.as_str(), first.kind, first.frame.as_str()),
         ("neck", ReachKind::Gaze, "world")
     );
-    // The next scan point after the dwell (0.4 s).
+    // No neck here to say "reached": the next scan point after the move's time-out (0.4 s).
     let second = next(&reaches, &launch, "the second scan gaze", WAIT, |_| true).await;
     assert_eq!(second.frame, "world");
     assert_ne!(second.position_m, first.position_m);

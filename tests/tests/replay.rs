@@ -24,18 +24,19 @@
 //!
 //! - **The Executive's steps**: every `executive/transitions` message, in order, compared on
 //!   (step number, event, states exited, states entered, active states). The tracker runs on
-//!   its frames' stamps, so its events come from the same frames. The Executive's timers (scan
-//!   dwell 1.5 s, courtesy delay 5 s, homing 2 s, the tracker watchdog 1.5 s) run on the wall
-//!   clock, and a replay at the recorded rate keeps the recorded gaps within a few milliseconds,
-//!   so a timer and an input keep their order unless they came within milliseconds of each
-//!   other. That is the one timing-dependent part, and the scenario keeps it away: no command
+//!   its frames' stamps, so its events come from the same frames. The Executive's timers (the
+//!   scan's 0.3 s hold on a point the neck reached and its 3 s move time-out, courtesy delay
+//!   5 s, homing 2 s, the tracker watchdog 1.5 s) run on the wall clock, and a replay at the
+//!   recorded rate keeps the recorded gaps within a few milliseconds, so a timer and an input
+//!   keep their order unless they came within milliseconds of each other. That is the one timing-dependent part, and the scenario keeps it away: no command
 //!   races the courtesy delay (no "you touched it"), "quit the game" comes 3 s after homing
 //!   started (the homing timer is 2 s), and the closest race is a scan step and the detection it
-//!   causes (the head moves to the next scan point, the ball comes into view: 130 to 450 ms
-//!   later in our runs). The test prints that margin, and a divergence's message repeats it. The
-//!   reach statuses carry the goal ids the live Executive numbered; the replayed one numbers its
-//!   goals the same way (a counter, one per gaze or reach goal), so with the same steps the same
-//!   statuses mean the same thing to it.
+//!   causes (the head moves on to the next scan point and the ball comes into view; with the
+//!   ball where the scan looks first it is seen during the first turn, before any scan timer).
+//!   The test prints that margin, and a divergence's message repeats it. The reach statuses
+//!   carry the goal ids the live Executive numbered; the replayed one numbers its goals the same
+//!   way (a counter, one per gaze or reach goal), so with the same steps the same statuses mean
+//!   the same thing to it (the neck's `reached` moves the scan on, as it did live).
 //! - **The tracker's output**: every track of a replayed frame is compared with the recorded
 //!   track of the same frame (same stamp): same state and found flag, the camera-frame centre
 //!   within [`CAMERA_TOLERANCE_M`], the world centre within [`WORLD_TOLERANCE_M`] (the DR applies

@@ -136,10 +136,17 @@ pub struct TouchSettings {
     /// After the hand reached the ball, how long the robot waits for "you touched it" before
     /// going home anyway (s).
     pub courtesy_delay_s: f64,
-    /// How long the head dwells on each scan point while searching (s).
+    /// How long the head holds still on a scan point once the neck reached it, before it turns
+    /// to the next one (s). The tracker looks all along the sweep (it places what it sees through
+    /// the camera's pose at each frame's stamp); the stop gives a real camera a sharp frame.
     pub scan_dwell_s: f64,
-    /// The search pattern: gaze points in `world` (m), visited in order, then again.
-    pub scan_points: Vec<[f64; 3]>,
+    /// The longest the head may take to a scan point: without the neck's `reached` (or
+    /// `unreachable`, `failed`) by then the scan goes on to the next point (s).
+    pub scan_move_timeout_s: f64,
+    /// The search pattern: gaze points in `world` (m), visited in order, then again; every
+    /// search starts at the first. Unset: [`default_scan_points`] for the side of `arm`
+    /// (see [`TouchSettings::scan_pattern`]).
+    pub scan_points: Option<Vec<[f64; 3]>>,
     /// The ball moved this far (m) from where it was last reported: the game says it follows it.
     pub ball_moved_m: f64,
     /// How long the arm takes to go home before another touch is a fresh start (s).
@@ -154,22 +161,25 @@ pub struct TouchSettings {
     pub rest_priority: u8,
 }
 
-/// The default search pattern: where a person shows a ball to a seated robot, in front of it at
-/// 0.7 m and within the neck's reach (the head camera is about 1.5 m high and the neck pitches
-/// down at most 0.6 rad): the centre first, then two rows at 1.35 m and 1.15 m high sweeping
-/// -0.4..0.4 m sideways in alternate directions.
-pub fn default_scan_points() -> Vec<[f64; 3]> {
-    let mut v = vec![[0.6, 0.0, 1.3]];
-    for (row, z) in [1.35, 1.15].into_iter().enumerate() {
-        let ys = [-0.4, -0.2, 0.0, 0.2, 0.4];
-        let ordered: Vec<f64> = if row % 2 == 0 {
-            ys.to_vec()
-        } else {
-            ys.iter().rev().copied().collect()
-        };
-        v.extend(ordered.into_iter().map(|y| [0.7, y, z]));
-    }
-    v
+/// The default search pattern, for a touching arm on the robot's `side` (+1: left, +y; -1:
+/// right): where a person shows a ball to a seated robot, most likely first. She holds it up in
+/// front of the robot at arm's length, about chest height (1.25 m; the head camera is about 1.47 m
+/// high), toward the hand that is to touch it; so the head looks there first, then at the same
+/// place on the other side, then higher (a person holding it up to the robot's face, a little
+/// farther) on both sides, then wide on both sides. The camera sees about 62 x 49 degrees, so
+/// these six views and the sweeps between them cover the space in front of the robot from the
+/// table's edge to above its eyes; every point is within the neck's reach (it pitches down at
+/// most 0.6 rad).
+pub fn default_scan_points(side: f64) -> Vec<[f64; 3]> {
+    let s = if side < 0.0 { -1.0 } else { 1.0 };
+    vec![
+        [0.50, 0.15 * s, 1.25],
+        [0.50, -0.15 * s, 1.25],
+        [0.70, -0.30 * s, 1.45],
+        [0.70, 0.30 * s, 1.45],
+        [0.55, 0.50 * s, 1.20],
+        [0.55, -0.50 * s, 1.20],
+    ]
 }
 
 impl Default for TouchSettings {
@@ -184,8 +194,9 @@ impl Default for TouchSettings {
             touch_offset_m: [-0.03, 0.0, 0.0],
             touch_tolerance_m: 0.02,
             courtesy_delay_s: 5.0,
-            scan_dwell_s: 1.5,
-            scan_points: default_scan_points(),
+            scan_dwell_s: 0.3,
+            scan_move_timeout_s: 3.0,
+            scan_points: None,
             ball_moved_m: 0.05,
             homing_s: 2.0,
             arm_rest: rest(&LEFT_ARM_JOINTS),
@@ -197,12 +208,30 @@ impl Default for TouchSettings {
 }
 
 impl TouchSettings {
+    /// The side of the robot the touching arm is on: -1 for a `right_*` arm, else +1 (left).
+    pub fn arm_side(&self) -> f64 {
+        if self.arm.starts_with("right") {
+            -1.0
+        } else {
+            1.0
+        }
+    }
+
+    /// The search pattern: `scan_points` when given, else [`default_scan_points`] for the
+    /// touching arm's side.
+    pub fn scan_pattern(&self) -> Vec<[f64; 3]> {
+        self.scan_points
+            .clone()
+            .unwrap_or_else(|| default_scan_points(self.arm_side()))
+    }
+
     /// Checks ranges (positive durations and sizes, a hue in [0, 360), at least one scan point).
     pub fn check(&self) -> Result<(), SettingsError> {
         let bad = |m: String| Err(SettingsError::Invalid(format!("[touch] {m}")));
         for (k, v) in [
             ("courtesy_delay_s", self.courtesy_delay_s),
             ("scan_dwell_s", self.scan_dwell_s),
+            ("scan_move_timeout_s", self.scan_move_timeout_s),
             ("homing_s", self.homing_s),
             ("ball_diameter_m", self.ball_diameter_m),
             ("ball_moved_m", self.ball_moved_m),
@@ -225,11 +254,11 @@ impl TouchSettings {
                 self.ball_saturation
             ));
         }
-        if self.scan_points.is_empty() {
+        if self.scan_points.as_ref().is_some_and(|v| v.is_empty()) {
             return bad("scan_points is empty".into());
         }
         let finite = |p: &[f64]| p.iter().all(|x| x.is_finite());
-        if !self.scan_points.iter().all(|p| finite(p)) || !finite(&self.touch_offset_m) {
+        if !self.scan_pattern().iter().all(|p| finite(p)) || !finite(&self.touch_offset_m) {
             return bad("a point has a non-finite coordinate".into());
         }
         for r in self.arm_rest.iter().chain(&self.head_rest) {
@@ -275,15 +304,41 @@ mod tests {
         assert_eq!(s.touch.arm, "left_arm_7");
         assert_eq!(s.touch.courtesy_delay_s, 5.0);
         assert_eq!(s.touch.arm_rest.len(), 7);
-        assert_eq!(s.touch.scan_points.len(), 11);
+        // The default scan: six points in front of the robot, within the neck's reach, the
+        // first at chest height at arm's length in front of the touching (left) arm, the second
+        // its mirror image.
+        assert_eq!(s.touch.scan_points, None);
+        let p = s.touch.scan_pattern();
+        assert_eq!(p.len(), 6);
         assert!(
-            s.touch
-                .scan_points
-                .iter()
-                .all(|p| (1.1..=1.4).contains(&p[2])
-                    && (0.5..=0.8).contains(&p[0])
-                    && (-0.4..=0.4).contains(&p[1]))
+            p.iter().all(|p| (1.1..=1.5).contains(&p[2])
+                && (0.45..=0.75).contains(&p[0])
+                && (-0.5..=0.5).contains(&p[1])),
+            "{p:?}"
         );
+        assert!(p[0][1] > 0.0 && (1.2..=1.3).contains(&p[0][2]), "{p:?}");
+        assert_eq!(p[1], [p[0][0], -p[0][1], p[0][2]]);
+        // Both sides are looked at, as often.
+        assert_eq!(
+            p.iter().filter(|p| p[1] > 0.0).count(),
+            p.iter().filter(|p| p[1] < 0.0).count()
+        );
+    }
+
+    #[test]
+    fn the_default_scan_starts_on_the_touching_arms_side_and_given_points_win() {
+        let right = Settings::parse("[touch]\narm = \"right_arm_7\"\n", "f").unwrap();
+        let left = TouchSettings::default().scan_pattern();
+        let mirrored: Vec<[f64; 3]> = left.iter().map(|p| [p[0], -p[1], p[2]]).collect();
+        assert_eq!(right.touch.scan_pattern(), mirrored);
+        assert!(right.touch.scan_pattern()[0][1] < 0.0);
+        let given = Settings::parse(
+            "[touch]\narm = \"right_arm_7\"\nscan_points = [[0.6, 0.1, 1.3]]\n",
+            "f",
+        )
+        .unwrap();
+        assert_eq!(given.touch.scan_pattern(), [[0.6, 0.1, 1.3]]);
+        assert!(Settings::parse("[touch]\nscan_move_timeout_s = 0.0\n", "f").is_err());
     }
 
     #[test]

@@ -16,8 +16,12 @@
 //! └── playing                   PARALLEL: the two regions run together
 //!     ├── eyes                  what the head does
 //!     │   ├── idle              initial: no target yet
-//!     │   ├── searching         target sent to the tracker; the neck sweeps the table
-//!     │   │   └── looking       one gaze point (after scan_dwell_s: the next one)
+//!     │   ├── searching         target sent to the tracker; the neck sweeps the scan points,
+//!     │   │   │                 from the first (where people hold a ball up) on
+//!     │   │   ├── looking       initial: turning to the next scan point (the tracker sees all
+//!     │   │   │                 along); the neck's reached/unreachable/failed -> holding, or
+//!     │   │   │                 after scan_move_timeout_s -> the next point
+//!     │   │   └── holding       still on the point; after scan_dwell_s -> looking (next point)
 //!     │   ├── tracking          the ball is seen; the neck follows it (gaze, frame `ball`)
 //!     │   └── out_of_sight      the ball left the image ("the ball is out of my sight")
 //!     └── arm                   what the arm does
@@ -38,7 +42,15 @@
 //! `ball:<kind>` (detected, out_of_view, lost, detection_timed_out) from `vision/ball_events`,
 //! `ball:moved` (the tracked centre in `world` moved more than `ball_moved_m` since the last
 //! one), `reach:<state>` (moving, reached, unreachable, cancelled, failed) for the arm's current
-//! goal, `gaze:<state>` for the neck's, and `timer:<label>` (scan, courtesy, homed).
+//! goal, `gaze:<state>` for the neck's, and `timer:<label>` (scan, dwell, courtesy, homed).
+//!
+//! # The search
+//!
+//! The tracker looks at every frame, the head's moves included (it places the ball through the
+//! camera's pose at the frame's stamp), and `ball:detected` ends the search whenever it comes. So
+//! the head does not stop and stare: it turns from one scan point to the next, holding still only
+//! `scan_dwell_s` once there, and the points start where people hold a ball up for the robot
+//! (see [`crate::settings::default_scan_points`]).
 //!
 //! Every utterance is a constant of [`say`].
 
@@ -94,6 +106,7 @@ pub mod state {
     pub const EYES_IDLE: &str = "game/playing/eyes/idle";
     pub const SEARCHING: &str = "game/playing/eyes/searching";
     pub const LOOKING: &str = "game/playing/eyes/searching/looking";
+    pub const HOLDING: &str = "game/playing/eyes/searching/holding";
     pub const TRACKING: &str = "game/playing/eyes/tracking";
     pub const OUT_OF_SIGHT: &str = "game/playing/eyes/out_of_sight";
     pub const ARM: &str = "game/playing/arm";
@@ -114,6 +127,8 @@ pub enum Act {
     SendTarget,
     /// Clear the tracker's target.
     ClearTarget,
+    /// Start the scan pattern from its first point.
+    ScanFromStart,
     /// Gaze at the next scan point.
     ScanNext,
     /// Gaze at the ball, following it.
@@ -186,6 +201,8 @@ pub enum Output {
 #[derive(Debug)]
 pub struct TouchCtx {
     settings: Arc<TouchSettings>,
+    /// The scan pattern ([`TouchSettings::scan_pattern`]).
+    scan_points: Vec<[f64; 3]>,
     outputs: Vec<Output>,
     next_id: u64,
     arm_goal: u64,
@@ -201,6 +218,7 @@ pub struct TouchCtx {
 impl TouchCtx {
     fn new(settings: Arc<TouchSettings>) -> Self {
         TouchCtx {
+            scan_points: settings.scan_pattern(),
             settings,
             outputs: Vec::new(),
             next_id: 0,
@@ -312,8 +330,13 @@ impl Context<Act, Input> for TouchCtx {
                 let t = self.target(false);
                 self.outputs.push(Output::SetBallTarget(t));
             }
+            Act::ScanFromStart => self.scan_index = 0,
             Act::ScanNext => {
-                let p = s.scan_points[self.scan_index % s.scan_points.len()];
+                // The settings' check guarantees a point; without one the head stays put.
+                let n = self.scan_points.len().max(1);
+                let Some(p) = self.scan_points.get(self.scan_index % n).copied() else {
+                    return;
+                };
                 self.scan_index += 1;
                 let mut g = self.reach(&s.neck, ReachKind::Gaze, "world", p, false);
                 g.id = self.id();
@@ -383,8 +406,10 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     b.atomic(EYES_IDLE);
     b.compound(SEARCHING, "looking")
         .entry(Act::SendTarget)
+        .entry(Act::ScanFromStart)
         .entry(normal(say::LOOKING));
     b.atomic(LOOKING).entry(Act::ScanNext);
+    b.atomic(HOLDING);
     b.atomic(TRACKING)
         .entry(Act::BallSeen(true))
         .entry(Act::GazeAtBall)
@@ -435,11 +460,21 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     b.on(PLAYING, "command:play")
         .action(normal(say::ALREADY_PLAYING));
 
-    // The eyes.
+    // The eyes. The scan: on to the next point once the neck is there (or cannot get there) and
+    // held still a moment; a neck that says nothing does not stop the scan.
+    for st in ["gaze:reached", "gaze:unreachable", "gaze:failed"] {
+        b.on(LOOKING, st).to(HOLDING);
+    }
     b.after(
         LOOKING,
-        Duration::from_secs_f64(settings.scan_dwell_s),
+        Duration::from_secs_f64(settings.scan_move_timeout_s),
         "scan",
+    )
+    .to(LOOKING);
+    b.after(
+        HOLDING,
+        Duration::from_secs_f64(settings.scan_dwell_s),
+        "dwell",
     )
     .to(LOOKING);
     b.on(SEARCHING, "ball:detected").to(TRACKING);

@@ -83,9 +83,24 @@ pub struct Outcome {
     pub duration_s: f64,
     /// Closest the hand came to the ball's surface while an expectation watched it (m).
     pub closest_hand_to_ball_m: Option<f64>,
-    /// Every expectation met: (step number, what, seconds from the end of the action before it,
-    /// i.e. the end of the person's sentence or the start of the ball's move).
-    pub timings: Vec<(usize, String, f64)>,
+    /// Every expectation met, with the time it took after the action before it.
+    pub timings: Vec<Timing>,
+}
+
+/// One expectation met, for benchmarks (one JSON object on the `person: timings` line).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Timing {
+    /// The expectation's step number (from 1).
+    pub step: usize,
+    /// What was expected ([`Expect::describe`]).
+    pub what: String,
+    /// Seconds from the end of the action before it (the end of the person's sentence or the
+    /// start of the ball's move) to the moment the person saw it, to the millisecond.
+    pub after_s: f64,
+    /// The step of that action (the expectation's own step when she said her sentence again
+    /// while waiting), and what it was: `says "scan the ball"`, `moves the ball to ...`.
+    pub action_step: usize,
+    pub action: String,
 }
 
 /// A speech job for the audio task: samples to mix in, and who to tell when they are out.
@@ -169,6 +184,8 @@ pub async fn run(
     let mut mark = Instant::now();
     let mut action_end = Instant::now();
     let mut last_said: Option<String> = None;
+    // The last action: its step and what it was (for the timings).
+    let mut last_action: (usize, String) = (0, String::new());
     let mut outcome = Outcome::default();
     for (i, step) in sc.steps.iter().enumerate() {
         if shutdown.is_requested() {
@@ -182,12 +199,14 @@ pub async fn run(
                 action_end = Instant::now();
                 println!("person: says {text:?}");
                 last_said = Some(text.clone());
+                last_action = (n, format!("says {text:?}"));
             }
             Step::Ball(m) => {
                 mark = Instant::now();
                 let arrival = move_ball(&ball, now_s(), m);
                 action_end = Instant::now();
                 println!("person: {}", describe_move(m));
+                last_action = (n, describe_move(m));
                 if m.wait {
                     tokio::time::sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0))).await;
                 }
@@ -219,7 +238,13 @@ pub async fn run(
                                 started.elapsed().as_secs_f64(),
                                 figures.describe()
                             );
-                            outcome.timings.push((n, e.describe(), after_s));
+                            outcome.timings.push(Timing {
+                                step: n,
+                                what: e.describe(),
+                                after_s: (after_s * 1e3).round() / 1e3,
+                                action_step: last_action.0,
+                                action: last_action.1.clone(),
+                            });
                             break;
                         }
                         Err(why) => {
@@ -235,6 +260,7 @@ pub async fn run(
                                 mark = Instant::now();
                                 say(&speech_tx, &voice, text, &seen, &mut shutdown).await?;
                                 action_end = Instant::now();
+                                last_action = (n, format!("says {text:?}"));
                                 continue;
                             }
                             anyhow::bail!(
@@ -585,6 +611,21 @@ pub fn rotate(q: &[f64; 4], v: &[f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_timing_is_one_json_object_with_its_action() {
+        let t = Timing {
+            step: 6,
+            what: "ball event \"detected\"".into(),
+            after_s: 1.235,
+            action_step: 5,
+            action: "says \"scan the ball\"".into(),
+        };
+        assert_eq!(
+            serde_json::to_string(&t).unwrap(),
+            r#"{"step":6,"what":"ball event \"detected\"","after_s":1.235,"action_step":5,"action":"says \"scan the ball\""}"#
+        );
+    }
 
     #[test]
     fn rotation_by_a_quarter_turn_about_z() {

@@ -132,9 +132,41 @@ fn the_person_greets_and_asks_to_play_and_the_robot_answers() {
     );
 }
 
+/// A status of the neck's goal `id`.
+fn gaze_status(id: u64, state: ReachState) -> ReachStatus {
+    ReachStatus {
+        id,
+        body_part: "neck".into(),
+        state,
+        ..Default::default()
+    }
+}
+
+/// The scan gaze of an outcome (one at most), as (goal id, point).
+fn scan_gaze(o: &Outcome) -> Option<(u64, [f64; 3])> {
+    let r = reaches(o);
+    assert!(r.len() <= 1, "{o:?}");
+    r.first().map(|g| {
+        assert_eq!(
+            (g.body_part.as_str(), g.kind, g.frame.as_str(), g.follow),
+            ("neck", ReachKind::Gaze, "world", false)
+        );
+        (g.id, g.position_m)
+    })
+}
+
+/// Played and asked to scan at t = 2 s; returns the first scan gaze's id.
+fn scanning() -> (TouchGame, u64) {
+    let mut g = game();
+    g.command(&cmd(Command::Play), t(1.0));
+    let o = g.command(&cmd(Command::ScanBall), t(2.0));
+    let (id, p) = scan_gaze(&o).expect("a scan gaze");
+    assert_eq!(p, TouchSettings::default().scan_pattern()[0]);
+    (g, id)
+}
+
 #[test]
-fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
-    let s = TouchSettings::default();
+fn scan_sends_the_target_and_looks_first_where_people_hold_a_ball_up() {
     let mut g = game();
     g.command(&cmd(Command::Play), t(1.0));
     let o = g.command(&cmd(Command::ScanBall), t(2.0));
@@ -152,35 +184,91 @@ fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
         (51.7, 0.85, 0.07)
     );
     assert_eq!(o.said(), [say::LOOKING]);
-    let r = reaches(&o);
-    assert_eq!(r.len(), 1);
-    assert_eq!(
-        (r[0].body_part.as_str(), r[0].kind, r[0].frame.as_str()),
-        ("neck", ReachKind::Gaze, "world")
-    );
-    assert_eq!(r[0].position_m, s.scan_points[0]);
-    assert!(!r[0].follow);
+    // The target goes out before the head turns: the tracker looks during the first turn.
+    let target_at = o
+        .outputs
+        .iter()
+        .position(|x| matches!(x, Output::SetBallTarget(_)))
+        .unwrap();
+    let gaze_at = o
+        .outputs
+        .iter()
+        .position(|x| matches!(x, Output::Reach(_)))
+        .unwrap();
+    assert!(target_at < gaze_at);
+    // First: in front of the touching (left) arm, at chest height, at arm's length.
+    let (_, p) = scan_gaze(&o).unwrap();
+    assert_eq!(p, [0.50, 0.15, 1.25]);
     assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+}
 
-    // The next scan point exactly one dwell (1.5 s) later, not before.
-    assert!(reaches(&g.advance(t(3.499))).is_empty());
-    let o = g.advance(t(3.5));
-    assert_eq!(reaches(&o)[0].position_m, s.scan_points[1]);
-    assert_eq!(o.steps[0].event, "timer:scan");
-    // Three more dwells: three more points, in order.
-    let o = g.advance(t(8.0));
-    let pts: Vec<[f64; 3]> = reaches(&o).iter().map(|r| r.position_m).collect();
-    assert_eq!(pts, s.scan_points[2..5]);
-    // Every scan point is on the table in front of the robot.
-    for p in &s.scan_points {
-        assert!(
-            (0.5..=0.8).contains(&p[0])
-                && (-0.4..=0.4).contains(&p[1])
-                && (1.1..=1.4).contains(&p[2])
-        );
+#[test]
+fn the_head_goes_on_to_the_next_point_once_there_and_held_still_a_moment() {
+    let s = TouchSettings::default();
+    let points = s.scan_pattern();
+    let (mut g, id) = scanning();
+    // "Moving" is not "there"; a status of another goal is not this one's.
+    g.reach_status(&gaze_status(id, ReachState::Moving), t(2.1));
+    g.reach_status(&gaze_status(id + 100, ReachState::Reached), t(2.2));
+    // No dwell timer while the head turns: nothing before the neck is there (within the
+    // move's time-out, 3 s).
+    assert!(scan_gaze(&g.advance(t(4.99))).is_none());
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+    // There at 4.99 s: held still for scan_dwell_s (0.3 s), then the next point, not before.
+    let o = g.reach_status(&gaze_status(id, ReachState::Reached), t(4.99));
+    assert!(scan_gaze(&o).is_none());
+    assert_eq!(active(&g), [state::RESTING, state::HOLDING]);
+    assert!(scan_gaze(&g.advance(t(5.289))).is_none());
+    let o = g.advance(t(5.29));
+    assert_eq!(o.steps[0].event, "timer:dwell");
+    let (id2, p) = scan_gaze(&o).unwrap();
+    assert_eq!(p, points[1]);
+    assert_ne!(id2, id);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+    // The whole pattern at that pace, then again from its first point.
+    let mut now = 5.29;
+    let mut id = id2;
+    let mut seen = vec![points[0], points[1]];
+    for _ in 0..points.len() {
+        now += 0.5;
+        g.reach_status(&gaze_status(id, ReachState::Reached), t(now));
+        now += s.scan_dwell_s;
+        let (next, p) = scan_gaze(&g.advance(t(now))).unwrap();
+        id = next;
+        seen.push(p);
     }
+    assert_eq!(seen[..points.len()], points[..]);
+    assert_eq!(seen[points.len()..], points[..2]);
+}
 
-    let o = g.ball_event(&ball(BallEventKind::Detected), t(8.2));
+#[test]
+fn a_neck_that_cannot_get_there_or_says_nothing_does_not_stop_the_scan() {
+    let s = TouchSettings::default();
+    let points = s.scan_pattern();
+    let (mut g, id) = scanning();
+    // Unreachable: held a moment where it is, then the next point.
+    g.reach_status(&gaze_status(id, ReachState::Unreachable), t(2.05));
+    assert_eq!(active(&g), [state::RESTING, state::HOLDING]);
+    let (id, p) = scan_gaze(&g.advance(t(2.35))).unwrap();
+    assert_eq!(p, points[1]);
+    // Failed: the same.
+    g.reach_status(&gaze_status(id, ReachState::Failed), t(3.0));
+    let (_, p) = scan_gaze(&g.advance(t(3.3))).unwrap();
+    assert_eq!(p, points[2]);
+    // Silence: the next point after scan_move_timeout_s (3 s), exactly.
+    assert!(scan_gaze(&g.advance(t(6.299))).is_none());
+    let o = g.advance(t(6.3));
+    assert_eq!(o.steps[0].event, "timer:scan");
+    assert_eq!(scan_gaze(&o).unwrap().1, points[3]);
+}
+
+#[test]
+fn a_ball_detected_while_the_head_turns_ends_the_search_at_once() {
+    let (mut g, id) = scanning();
+    // Half-way through the first turn, no "reached" yet.
+    g.reach_status(&gaze_status(id, ReachState::Moving), t(2.1));
+    g.ball_track(&track([0.45, 0.3, 1.2]), t(2.39));
+    let o = g.ball_event(&ball(BallEventKind::Detected), t(2.4));
     let r = reaches(&o);
     assert_eq!(r.len(), 1);
     assert_eq!(
@@ -190,9 +278,53 @@ fn scan_sends_the_target_sweeps_the_table_then_follows_the_ball() {
     assert!(r[0].follow && r[0].active);
     assert_eq!(o.said(), [say::SEE_IT]);
     assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
-    // No more scanning once tracking.
+    // No more scanning once tracking: no timer, and the old goal's "reached" changes nothing.
     assert!(g.next_deadline().is_none());
+    let o = g.reach_status(&gaze_status(id, ReachState::Reached), t(2.8));
+    assert!(reaches(&o).is_empty());
     assert!(reaches(&g.advance(t(20.0))).is_empty());
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+}
+
+#[test]
+fn a_ball_detected_while_the_head_holds_still_ends_the_search_too() {
+    let (mut g, id) = scanning();
+    g.reach_status(&gaze_status(id, ReachState::Reached), t(2.7));
+    assert_eq!(active(&g), [state::RESTING, state::HOLDING]);
+    let o = g.ball_event(&ball(BallEventKind::Detected), t(2.8));
+    assert_eq!(o.said(), [say::SEE_IT]);
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+    assert!(g.next_deadline().is_none());
+}
+
+#[test]
+fn every_search_starts_again_where_people_hold_a_ball_up() {
+    let points = TouchSettings::default().scan_pattern();
+    let (mut g, id) = scanning();
+    // Three points into the first search.
+    g.reach_status(&gaze_status(id, ReachState::Reached), t(2.5));
+    let (id, _) = scan_gaze(&g.advance(t(2.8))).unwrap();
+    g.reach_status(&gaze_status(id, ReachState::Reached), t(3.3));
+    let (_, p) = scan_gaze(&g.advance(t(3.6))).unwrap();
+    assert_eq!(p, points[2]);
+    g.ball_event(&ball(BallEventKind::Detected), t(4.0));
+    // Lost: the new search starts at the first point, not the fourth.
+    let o = g.ball_event(&ball(BallEventKind::Lost), t(6.0));
+    assert_eq!(o.said(), [say::LOST, say::LOOKING]);
+    assert_eq!(scan_gaze(&o).unwrap().1, points[0]);
+    assert_eq!(active(&g), [state::RESTING, state::LOOKING]);
+}
+
+#[test]
+fn a_scan_configured_for_the_right_arm_starts_on_its_side() {
+    let s = TouchSettings {
+        arm: "right_arm_7".into(),
+        ..TouchSettings::default()
+    };
+    let mut g = TouchGame::new(s).unwrap();
+    g.start(t(0.0));
+    let o = g.command(&cmd(Command::ScanBall), t(1.0));
+    assert_eq!(scan_gaze(&o).unwrap().1, [0.50, -0.15, 1.25]);
 }
 
 #[test]
