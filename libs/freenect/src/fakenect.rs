@@ -454,10 +454,7 @@ mod tests {
         let mut live = LiveDump::create(&dir).unwrap();
         let rgb = vec![1u8; PIXELS * 3];
         let raw = vec![900u16; PIXELS];
-        assert_eq!(
-            live.offer(0, &rgb, &raw, None).unwrap(),
-            Offer::NoReader
-        );
+        assert_eq!(live.offer(0, &rgb, &raw, None).unwrap(), Offer::NoReader);
         let reader = std::fs::OpenOptions::new()
             .read(true)
             .custom_flags_nonblock()
@@ -481,17 +478,13 @@ mod tests {
         let mut rest = Vec::new();
         for i in 0..LIVE_KEEP_FRAMES + 2 {
             r.read_to_end(&mut rest).ok();
-            live.offer(10 + i as u32, &rgb, &raw, None)
-                .unwrap();
+            live.offer(10 + i as u32, &rgb, &raw, None).unwrap();
         }
         let files = std::fs::read_dir(&dir).unwrap().count();
         assert!(files <= LIVE_KEEP_FRAMES * 2 + 1, "{files} files kept");
         // The reader closes: the next offer finds no reader and does not fail.
         drop(r);
-        assert_eq!(
-            live.offer(99, &rgb, &raw, None).unwrap(),
-            Offer::NoReader
-        );
+        assert_eq!(live.offer(99, &rgb, &raw, None).unwrap(), Offer::NoReader);
         drop(live);
         assert!(!dir.join("INDEX.txt").exists());
         let left = std::fs::read_dir(&dir).unwrap().count();
