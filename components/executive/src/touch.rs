@@ -63,7 +63,7 @@ use interfaces::msg::body::{
 };
 use interfaces::msg::command::{Command, Game, GameCommand};
 use interfaces::msg::speech::Priority;
-use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack};
+use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack, BallTrackState};
 
 use crate::engine::{Builder, Context, Definition, DefinitionError, Event, Machine, Step};
 use crate::settings::{JointRest, TouchSettings};
@@ -497,6 +497,9 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
         .to(SEARCHING)
         .action(high(say::LOST));
     b.on(OUT_OF_SIGHT, "ball:detected").to(TRACKING);
+    // The tracker reported the ball at the border (say, while the head was still turning) but
+    // kept it, and the stopped head sees it well inside the image: follow it again.
+    b.on(OUT_OF_SIGHT, "ball:in_view").to(TRACKING);
 
     // The arm.
     b.on(RESTING, "command:touch_ball")
@@ -800,6 +803,14 @@ impl TouchGame {
     /// A track from `vision/ball`: raises `ball:moved` when the ball's `world` centre moved more
     /// than `ball_moved_m` since the last report (the first position is only recorded).
     pub fn ball_track(&mut self, track: &BallTrack, now: Duration) -> Outcome {
+        let mut out = self.ball_track_moved(track, now);
+        if self.machine.is_active(state::OUT_OF_SIGHT) && well_in_view(track) {
+            out.extend(self.send("ball:in_view", Input::Track(track.clone()), now));
+        }
+        out
+    }
+
+    fn ball_track_moved(&mut self, track: &BallTrack, now: Duration) -> Outcome {
         if track.has_centre_m {
             self.ctx.ball_camera_distance = Some(norm(track.centre_m));
         }
@@ -880,3 +891,17 @@ impl TouchGame {
 
 #[cfg(test)]
 mod tests;
+
+/// Largest angle off the camera's axis (degrees) at which a tracked ball counts as well inside
+/// the image (the head camera sees about 31 degrees to either side, 24 up and down).
+const WELL_IN_VIEW_DEG: f64 = 18.0;
+
+/// A ball the tracker holds (found, tracking) within [`WELL_IN_VIEW_DEG`] of the camera's axis.
+fn well_in_view(track: &BallTrack) -> bool {
+    let [x, y, z] = track.centre_m;
+    track.found
+        && track.state == BallTrackState::Tracking
+        && track.has_centre_m
+        && z > 0.0
+        && x.hypot(y).atan2(z).to_degrees() < WELL_IN_VIEW_DEG
+}

@@ -548,6 +548,32 @@ fn out_of_view_then_lost_then_found_again() {
     assert_eq!(o.said(), [say::SEE_IT]);
 }
 
+/// Reported at the border while the head turned, but still held by the tracker and well inside
+/// the image once the head stopped: the eyes follow it again (no deadlock in out_of_sight).
+#[test]
+fn a_ball_still_held_well_inside_the_image_is_followed_again() {
+    let mut g = tracking();
+    g.ball_event(&ball(BallEventKind::OutOfView), t(5.0));
+    assert_eq!(active(&g), [state::RESTING, state::OUT_OF_SIGHT]);
+    let mut near_border = track([0.5, 0.2, 1.2]);
+    near_border.state = BallTrackState::Tracking;
+    near_border.centre_m = [0.4, 0.0, 0.6];
+    g.ball_track(&near_border, t(5.2));
+    assert_eq!(
+        active(&g),
+        [state::RESTING, state::OUT_OF_SIGHT],
+        "34 degrees off"
+    );
+    let mut inside = near_border.clone();
+    inside.centre_m = [0.1, 0.05, 0.6];
+    let o = g.ball_track(&inside, t(5.4));
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+    assert!(
+        reaches(&o).iter().any(|r| r.body_part == "neck"),
+        "the neck follows the ball again"
+    );
+}
+
 #[test]
 fn commands_that_make_no_sense_now_are_explained() {
     let mut g = game();
