@@ -4,11 +4,11 @@
 //! the bus; with a state folder, a restart recovers every change.
 
 use clap::Parser;
-use deep_representation::persist::StoreOptions;
 use deep_representation::service::{self, Scene, ServiceConfig, find_model};
 use interfaces::node::{self, NodeArgs};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use world_model::persist::StoreOptions;
 
 /// The deep representation: robocog's world model, served on the bus.
 #[derive(Debug, Parser)]

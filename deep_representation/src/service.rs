@@ -32,15 +32,15 @@ use interfaces::node::Interface;
 use interfaces::{Bus, ServiceError, Shutdown, topics};
 use tokio::sync::{RwLock, mpsc};
 
-use crate::error::DrError;
-use crate::field::FieldModel;
-use crate::graph::{At, EdgeKind, RejectReason, SceneGraph};
-use crate::kinematics::RobotModel;
-use crate::pddl::{Atom, export_problem};
-use crate::persist::{LogLine, RecoveryReport, Store, StoreOptions};
-use crate::predicates::{self, PredicateConfig, PredicateKind, fork_report};
-use crate::types::{self, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Proposal, Stamp};
-use crate::{scenes, types::Pose};
+use robot_model::RobotModel;
+use world_model::error::DrError;
+use world_model::field::FieldModel;
+use world_model::graph::{At, EdgeKind, RejectReason, SceneGraph};
+use world_model::pddl::{Atom, export_problem};
+use world_model::persist::{LogLine, RecoveryReport, Store, StoreOptions};
+use world_model::predicates::{self, PredicateConfig, PredicateKind, fork_report};
+use world_model::types::{self, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Proposal, Stamp};
+use world_model::{scenes, types::Pose};
 
 /// The start scene used when the state folder holds no state (or there is none).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -92,7 +92,7 @@ impl ServiceConfig {
     }
 
     /// The start scene.
-    pub fn start_scene(&self) -> crate::Result<SceneGraph> {
+    pub fn start_scene(&self) -> world_model::Result<SceneGraph> {
         match self.scene {
             Scene::Touch => {
                 let loki = RobotModel::from_urdf_file(&self.urdf)?;
@@ -107,33 +107,7 @@ impl ServiceConfig {
     }
 }
 
-/// Where a model file is: `explicit` if given; else the first `models/<file>` found walking up
-/// from the executable's folder, then from the working folder; else the repository's
-/// `models/<file>` as seen at build time (which may not exist on another machine: loading it then
-/// fails with the path).
-pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
-    if let Some(p) = explicit {
-        return p.to_path_buf();
-    }
-    let starts = [
-        std::env::current_exe()
-            .ok()
-            .and_then(|e| e.parent().map(Path::to_path_buf)),
-        std::env::current_dir().ok(),
-    ];
-    for start in starts.into_iter().flatten() {
-        for dir in start.ancestors() {
-            let p = dir.join("models").join(file);
-            if p.is_file() {
-                return p;
-            }
-        }
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("models")
-        .join(file)
-}
+pub use robot_model::find_model;
 
 /// The component's interface (what `--describe` prints).
 pub fn interface() -> Interface {
@@ -536,7 +510,7 @@ impl Dr {
         poses: &[m::PoseUpdate],
         joints: &[m::JointUpdate],
         stamp: Stamp,
-    ) -> crate::Result<()> {
+    ) -> world_model::Result<()> {
         for j in joints {
             g.set_joint(&j.joint, j.value, stamp)?;
         }

@@ -544,7 +544,7 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
     );
 
     // Restore: replace the state with the empty world, then with the saved one.
-    let empty = deep_representation::SceneGraph::new().snapshot_json();
+    let empty = world_model::SceneGraph::new().snapshot_json();
     let r = c
         .call(
             &topics::DR_RESTORE,

@@ -16,9 +16,9 @@ use std::time::Instant;
 
 use ball_tracker::hsv::rgb_to_hsv;
 use ball_tracker::{BallTracker, Target, TrackEvent, TrackState, TrackerConfig};
+use camera::playback::TumWriter;
+use camera::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 use nalgebra::{Point3, Vector3};
-use rgbd::playback::TumWriter;
-use rgbd::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 
 const RED: [u8; 3] = [220, 40, 30];
 

@@ -6,7 +6,7 @@
 //!   up behind a slow tracker, it jumps to the newest and counts the others (`skipped_frames`),
 //!   unless `--every-frame` (then a full queue holds the camera back, as the bus does). Frames
 //!   are read in place (`Subscriber::recv_borrowed`): the pixels are copied once, from the
-//!   camera's shared-memory buffer into the tracker's own frame ([`rgbd::convert::from_view`]),
+//!   camera's shared-memory buffer into the tracker's own frame ([`camera::convert::from_view`]),
 //!   and a skipped frame is never copied at all.
 //! - `vision/ball_target` ([`BallTarget`]): what to look for; `active = false` clears it. The
 //!   flags `--target-hue --target-saturation --target-diameter` set one at start (a manifest's
@@ -132,7 +132,7 @@ pub enum FrameRejected {
         /// The frame's sequence number.
         seq: u64,
         /// What is wrong.
-        source: rgbd::convert::ConvertError,
+        source: camera::convert::ConvertError,
     },
     /// The tracker refused it (a non-finite stamp, an invalid frame).
     #[error("frame {seq} refused by the tracker: {source}")]
@@ -188,7 +188,7 @@ impl Handler {
         frame: &RgbdFrameView<'_>,
     ) -> Result<(BallTrack, Vec<BallEvent>), FrameRejected> {
         let seq = frame.header.seq;
-        let image = rgbd::convert::from_view(frame)
+        let image = camera::convert::from_view(frame)
             .map_err(|source| FrameRejected::Malformed { seq, source })?;
         let out = self
             .tracker
@@ -431,9 +431,9 @@ async fn track_frames(
 mod tests {
     use super::*;
     use crate::hsv::rgb_to_hsv;
-    use rgbd::scenario::{BALL_DIAMETER_M, BALL_RED, CameraPose, Scenario, ScenarioSim};
-    use rgbd::sim::SensorModel;
-    use rgbd::{RgbdDriver, convert};
+    use camera::scenario::{BALL_DIAMETER_M, BALL_RED, CameraPose, Scenario, ScenarioSim};
+    use camera::sim::SensorModel;
+    use camera::{RgbdDriver, convert};
 
     fn red_target() -> Target {
         let (h, s, _) = rgb_to_hsv(BALL_RED[0], BALL_RED[1], BALL_RED[2]);
@@ -508,12 +508,12 @@ mod tests {
 
     #[test]
     fn the_game_yellow_ball_is_tracked_from_half_a_metre_to_1_2_m_with_the_head_moving() {
+        use camera::sim::look_at;
+        use camera::world::{WorldSim, hsv_to_rgb};
         use interfaces::msg::tracking::SimBall;
         use nalgebra::{Point3, Vector3};
-        use rgbd::sim::look_at;
-        use rgbd::world::{WorldSim, hsv_to_rgb};
         // The tracker's own colour conversion agrees with the flags' hue and saturation.
-        let [r, g, b] = hsv_to_rgb(52.0, 0.85, rgbd::world::BALL_VALUE);
+        let [r, g, b] = hsv_to_rgb(52.0, 0.85, camera::world::BALL_VALUE);
         let (h, s, _) = rgb_to_hsv(r, g, b);
         assert!(
             (h - 51.7).abs() < 0.05 && (s - 0.85).abs() < 0.005,

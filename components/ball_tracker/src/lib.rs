@@ -4,7 +4,7 @@
 //! **tracking** (CamShift on a hue-saturation-depth histogram, verified by metric size). See
 //! [`tracker`] for the algorithm, [`types`] for the bus-facing output.
 //!
-//! Conventions: frames are [`rgbd::Frame`]s (RGB8, depth in mm along the optical axis); 3D
+//! Conventions: frames are [`camera::Frame`]s (RGB8, depth in mm along the optical axis); 3D
 //! output is in the camera optical frame (z forward, x right, y down), metres; time is passed in
 //! (seconds), never read from a clock.
 //!

@@ -30,7 +30,7 @@
 //! "surface depth plus radius along the ray"); the median of `t` over the pixels is robust to
 //! edge pixels and noise.
 
-use rgbd::{Frame, FrameError, Intrinsics};
+use camera::{Frame, FrameError, Intrinsics};
 
 use crate::hsv::{hue_diff_deg, rgb_to_hsv};
 use crate::types::{Target, TrackEvent, TrackOutput, TrackState, Window};

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use ball_tracker::hsv::rgb_to_hsv;
 use ball_tracker::{BallTracker, Target, TrackEvent, TrackState, TrackerConfig};
-use rgbd::RgbdDriver;
-use rgbd::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
+use camera::RgbdDriver;
+use camera::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
 
 fn shipped() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../rgbd/tests/data/sim_ball_seq")

@@ -5,9 +5,9 @@
 
 use ball_tracker::hsv::rgb_to_hsv;
 use ball_tracker::{BallTracker, Target, TrackEvent, TrackOutput, TrackState, TrackerConfig};
+use camera::sim::{HandArm, Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
+use camera::{Frame, Intrinsics};
 use nalgebra::{Point3, Vector3};
-use rgbd::sim::{HandArm, Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
-use rgbd::{Frame, Intrinsics};
 
 const RED: [u8; 3] = [220, 40, 30];
 const DT: f64 = 1.0 / 30.0;

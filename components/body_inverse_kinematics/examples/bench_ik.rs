@@ -18,10 +18,10 @@ use std::time::Instant;
 use body_inverse_kinematics::{
     BodyIk, Goal, IkRequest, IkSolver, IkTarget, MonotonicDeadline, SolverOptions, Tolerance,
 };
-use deep_representation::kinematics::RobotModel;
 use nalgebra::{Isometry3, UnitQuaternion};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
+use robot_model::RobotModel;
 
 struct Case {
     name: &'static str,

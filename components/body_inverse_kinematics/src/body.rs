@@ -9,9 +9,9 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use deep_representation::error::DrError;
-use deep_representation::kinematics::RobotModel;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3, Vector6};
+use robot_model::ModelError;
+use robot_model::RobotModel;
 use thiserror::Error;
 
 use crate::collision::{CollidingPair, SelfCollision};
@@ -23,7 +23,7 @@ use crate::types::{IkRequest, IkResult, IkTarget, UnreachableCause};
 pub enum IkError {
     /// The model or the body part could not be loaded (unknown name, not a chain, bad URDF).
     #[error(transparent)]
-    Model(#[from] DrError),
+    Model(#[from] ModelError),
     /// A malformed request (non-finite numbers, zero quaternion, bad weights or tolerances).
     #[error("invalid IK request: {0}")]
     InvalidRequest(String),
@@ -110,7 +110,7 @@ impl BodyIk {
             .joints
             .iter()
             .position(|j| j.name == name)
-            .ok_or_else(|| DrError::UnknownJoint(name.to_string()))?;
+            .ok_or_else(|| ModelError::UnknownJoint(name.to_string()))?;
         let l = self.model.joints[i].limits;
         self.posture[i] = value.clamp(l.lower, l.upper);
         Ok(())
@@ -132,7 +132,7 @@ impl BodyIk {
                         .joints
                         .iter()
                         .position(|j| j.name == cj.name)
-                        .ok_or_else(|| DrError::UnknownJoint(cj.name.clone()))
+                        .ok_or_else(|| ModelError::UnknownJoint(cj.name.clone()))
                 })
                 .collect::<Result<_, _>>()?;
             let moving = self.collision.moved_by(&joint_index);

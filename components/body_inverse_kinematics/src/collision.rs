@@ -23,8 +23,8 @@
 //! limits), since they are in contact by design (for example the upper arm against the torso:
 //! the forearm, hand and fingers are still checked against the torso).
 
-use deep_representation::kinematics::{RobotModel, Shape};
 use nalgebra::{Isometry3, Point3, Vector3};
+use robot_model::{RobotModel, Shape};
 
 /// Spheres up to this radius (m) are frame markers, not bodies.
 pub const MARKER_RADIUS_M: f64 = 0.005;
@@ -229,7 +229,7 @@ pub struct SelfCollision {
     parent: Vec<Option<(usize, usize)>>,
     /// Links in an order where parents come first.
     order: Vec<usize>,
-    joints: Vec<deep_representation::kinematics::JointModel>,
+    joints: Vec<robot_model::JointModel>,
     /// Primitives per link, link frame.
     prims: Vec<Vec<Prim>>,
     /// Pairs of links checked (see the module docs).

@@ -45,8 +45,6 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use deep_representation::kinematics::{BODY_PARTS, BodyPart, Chain};
-use deep_representation::service::find_model;
 use interfaces::bus::{CallError, Publisher};
 use interfaces::msg::body::{
     JointGoal, JointMode, JointStates, JointTarget, ReachGoal, ReachKind, ReachState, ReachStatus,
@@ -56,6 +54,8 @@ use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, ErrorCode, Header, Shutdown, topics};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use robot_model::find_model;
+use robot_model::{BODY_PARTS, BodyPart, Chain};
 
 use crate::body::BodyIk;
 use crate::trajectory::Trajectory;

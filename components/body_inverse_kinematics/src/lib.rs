@@ -3,7 +3,7 @@
 //! The *BodyInverseKinematics* module of RoboCog (seed 001 §III and §V.C): one algorithm,
 //! Levenberg-Marquardt damped least squares, for **any open chain** of the robot's kinematic tree,
 //! chosen per request by naming a body part (`left_arm_4`, `left_arm_7`, `left_arm_11`,
-//! `left_arm_13`, `neck`, `left_eye`, ...; see `deep_representation::kinematics`), plus gaze for
+//! `left_arm_13`, `neck`, `left_eye`, ...; see `robot_model`), plus gaze for
 //! the head through the paper's virtual stick. This crate is the pure library: no bus, no clock
 //! except the compute-time budget of [`solver::MonotonicDeadline`].
 //!

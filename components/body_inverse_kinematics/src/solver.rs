@@ -29,10 +29,10 @@
 //! No allocation after [`IkSolver::new`]: the Jacobian and joint buffers are preallocated, the
 //! 6x6 system lives on the stack.
 
-use deep_representation::kinematics::{Chain, JointKind};
 use nalgebra::{Isometry3, Matrix6, Matrix6xX, Vector3, Vector6};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use robot_model::{Chain, JointKind};
 
 /// What the solver minimises, in the chain's root frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -569,7 +569,7 @@ impl IkSolver {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deep_representation::kinematics::RobotModel;
+    use robot_model::RobotModel;
 
     fn loki() -> RobotModel {
         RobotModel::from_urdf_file(concat!(

@@ -4,7 +4,7 @@
 //! # Frames and units
 //! - Every target is expressed in the **root frame of the requested body part's chain** (for
 //!   example `torso` for `left_arm_7` and `neck`, `base_footprint` for `left_arm_13`; see
-//!   `deep_representation::kinematics::BODY_PARTS`). The caller transforms world targets into that
+//!   `robot_model::BODY_PARTS`). The caller transforms world targets into that
 //!   frame with the deep representation before asking.
 //! - Positions in metres, angles in radians, times in seconds, joint values in radians (revolute)
 //!   or metres (prismatic), in chain order (root to tip).
@@ -55,7 +55,7 @@ pub enum IkTarget {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IkRequest {
-    /// A named body part (`left_arm_7`, `neck`, ...; see `deep_representation::kinematics`).
+    /// A named body part (`left_arm_7`, `neck`, ...; see `robot_model`).
     pub body_part: String,
     /// The target, in the chain's root frame.
     pub target: IkTarget,

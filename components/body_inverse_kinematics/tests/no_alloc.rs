@@ -5,8 +5,8 @@
 #![allow(clippy::unwrap_used)] // tests may unwrap (STYLE: no unwrap outside tests)
 
 use body_inverse_kinematics::{Goal, IkSolver, MonotonicDeadline, SolverOptions, Tolerance};
-use deep_representation::kinematics::RobotModel;
 use nalgebra::Point3;
+use robot_model::RobotModel;
 
 #[test]
 fn solve_makes_no_heap_allocation() {

@@ -23,12 +23,12 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use deep_representation::kinematics::{JointKind as UrdfKind, RobotModel};
-use deep_representation::service::find_model;
 use interfaces::msg::body as m;
 use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Shutdown, topics};
+use robot_model::find_model;
+use robot_model::{JointKind as UrdfKind, RobotModel};
 
 use crate::bus::{self, Request};
 use crate::driver::JointDriver;

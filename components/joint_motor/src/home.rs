@@ -58,7 +58,7 @@ mod tests {
             "/../../models/loki.urdf"
         ))
         .unwrap();
-        let model = deep_representation::kinematics::RobotModel::from_urdf_str(&text).unwrap();
+        let model = robot_model::RobotModel::from_urdf_str(&text).unwrap();
         for (name, q) in REST {
             let j = model.joint(name).unwrap();
             assert!(j.limits.lower < *q && *q < j.limits.upper, "{name} {q}");

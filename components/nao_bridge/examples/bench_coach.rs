@@ -12,8 +12,8 @@
 use interfaces::msg::nao::{self as bus_msg, NaoBody, NaoCommand};
 use interfaces::{Bus, ConnectArgs, topics};
 use nao_bridge::component::{Config, run};
-use nao_bridge::encode_debug;
-use nao_bridge::types::*;
+use spl::encode_debug;
+use spl::types::*;
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 

@@ -1,11 +1,11 @@
 //! Conversions between the protocol types of this crate and the bus messages of
 //! `interfaces::msg::nao`, at the edge of the component (one place, both directions).
 
-use crate::types::{
+use interfaces::msg::nao as msg;
+use spl::types::{
     BodyCommand, FieldPoint, GameControllerState, GlobalWorldModel, HeadCommand, LinkEvent,
     LocalWorldModel, NaoCommand, Pose2, Strategy, TeamInfo,
 };
-use interfaces::msg::nao as msg;
 
 fn point(p: FieldPoint) -> msg::FieldPoint {
     msg::FieldPoint {

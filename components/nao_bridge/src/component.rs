@@ -15,12 +15,10 @@
 //!   component's `diagnostics`) and logged at most once a second per reason.
 
 use crate::bus as convert;
-use crate::{
-    ExpectedRobot, FusionConfig, Inbound, InboundConfig, PacketKind, WorldModelFusion,
-    encode_command,
-};
+use crate::{ExpectedRobot, Inbound, InboundConfig};
 use interfaces::msg::nao::{GameState, NaoWorldModel};
 use interfaces::{Bus, Shutdown, topics};
+use spl::{FusionConfig, PacketKind, WorldModelFusion, encode_command};
 use std::net::{IpAddr, SocketAddr};
 use std::time::{Duration, Instant};
 use tokio::net::UdpSocket;
@@ -76,7 +74,7 @@ impl ProposeVia {
 type Latest = (
     Option<NaoWorldModel>,
     Option<GameState>,
-    Vec<crate::types::TrackedObstacle>,
+    Vec<spl::types::TrackedObstacle>,
 );
 
 /// Logs at most once every 5 s.
@@ -321,7 +319,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 if config.dr_updates {
                     let obstacles = fusion.snapshot(t).obstacles;
                     latest_tx.send_if_modified(|l| {
-                        let ids = |v: &[crate::types::TrackedObstacle]| {
+                        let ids = |v: &[spl::types::TrackedObstacle]| {
                             v.iter().map(|o| o.id).collect::<Vec<_>>()
                         };
                         let changed = ids(&l.2) != ids(&obstacles);
@@ -340,7 +338,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 let drops = inbound.drops().counters();
                 let mut counts = Vec::new();
                 for kind in [PacketKind::Debug, PacketKind::GameController] {
-                    for reason in crate::DropReason::ALL {
+                    for reason in spl::DropReason::ALL {
                         let n = drops.get(kind, reason);
                         if n > 0 {
                             counts.push((format!("drop/{kind}/{}", reason.name()), n));

@@ -15,7 +15,7 @@
 //!   `obstacle_<track id>` (type `object`, child of `field`, free pose at the carpet) once it is
 //!   confirmed (`min_observations`), and is removed when the fusion drops it (unseen for the
 //!   fusion's `obstacle_timeout_s`). Attributes: `obstacle_type` (text: `opponent`,
-//!   `fallen_some_robot`, ... as [`crate::types::ObstacleKind::name`]), `seen_age_s` (float, s since any of
+//!   `fallen_some_robot`, ... as [`spl::types::ObstacleKind::name`]), `seen_age_s` (float, s since any of
 //!   our robots saw it), `last_seen_ns` (int, bus-clock time it was last seen) and
 //!   `observations` (int). At most `max_changes_per_cycle` proposals go out per mirror cycle
 //!   (removals first) and at most `max_nodes` obstacle nodes exist, so a flickering perception
@@ -26,11 +26,11 @@
 //! (`dr/propose` or `executive/propose`, then `dr/update`) at most [`MIRROR_PERIOD`] apart, one
 //! request in flight, counting what fails.
 
-use crate::types::TrackedObstacle;
 use interfaces::msg::dr::{
     AttrValue, Attribute, ChangeKind, PoseUpdate, StructuralChange, Transform, UpdateRequest,
 };
 use interfaces::msg::nao::{GameState, NaoWorldModel};
+use spl::types::TrackedObstacle;
 use std::collections::BTreeSet;
 use std::time::Duration;
 
@@ -433,8 +433,8 @@ mod tests {
     fn track(id: u32, observations: u32, age_s: f64) -> TrackedObstacle {
         TrackedObstacle {
             id,
-            kind: crate::types::ObstacleKind::Opponent,
-            center: crate::types::FieldPoint::new(1000.0 + id as f32, -500.0),
+            kind: spl::types::ObstacleKind::Opponent,
+            center: spl::types::FieldPoint::new(1000.0 + id as f32, -500.0),
             age_s,
             observations,
         }

@@ -7,9 +7,9 @@ use std::net::{IpAddr, SocketAddr};
 use serde::{Deserialize, Serialize};
 
 use crate::link::LinkMonitor;
-use crate::types::{GameControllerState, LinkEvent, LocalWorldModel};
-use crate::validation::{DropMonitor, PacketError, PacketKind, SourceFilter};
-use crate::{decode_debug, decode_gamecontroller};
+use spl::types::{GameControllerState, LinkEvent, LocalWorldModel};
+use spl::validation::{DropMonitor, PacketError, PacketKind, SourceFilter};
+use spl::{decode_debug, decode_gamecontroller};
 
 /// One robot the bridge expects debug packets from.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -163,7 +163,7 @@ impl Inbound {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::validation::DropReason;
+    use spl::validation::DropReason;
 
     fn config() -> InboundConfig {
         InboundConfig {
@@ -186,7 +186,7 @@ mod tests {
     #[test]
     fn accepts_counts_and_reports_link_changes() {
         let mut inb = Inbound::new(config(), 0.0);
-        let pkt = crate::debug::tests::hand_built(); // player 2
+        let pkt = spl::samples::debug_packet(); // player 2
         let from2: SocketAddr = "10.0.19.2:40000".parse().unwrap();
         let (m, ev) = inb.on_debug(&pkt, from2, 0.1).unwrap();
         assert_eq!(m.player_number, 2);
@@ -217,7 +217,7 @@ mod tests {
         let (_, ev) = inb.on_debug(&pkt, from2, 2.0).unwrap();
         assert!(matches!(ev, Some((2, LinkEvent::LinkRestored { .. }))));
         // GameController from anywhere (no address configured).
-        let gc = crate::gamecontroller::tests::hand_built();
+        let gc = spl::samples::gamecontroller_packet();
         assert!(
             inb.on_gamecontroller(&gc, "10.0.0.100:3838".parse().unwrap(), 2.0)
                 .is_some()

@@ -1,7 +1,7 @@
 //! Link-loss detection for one robot: no valid packet for `timeout_s` => "robot not responding",
 //! then "link restored" at the next packet. Pure: time (s, caller's clock) is passed in.
 
-use crate::types::LinkEvent;
+use spl::types::LinkEvent;
 
 /// Whether the link is considered up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -19,16 +19,16 @@ struct Args {
     #[arg(long)]
     teammate: Option<IpAddr>,
     /// The robot's command port.
-    #[arg(long, default_value_t = nao_bridge::COMMAND_PORT)]
+    #[arg(long, default_value_t = spl::COMMAND_PORT)]
     command_port: u16,
     /// Address to listen on for debug and GameController packets (UDP).
     #[arg(long, default_value = "127.0.0.1")]
     udp_listen: IpAddr,
     /// Port of the robots' debug packets.
-    #[arg(long, default_value_t = nao_bridge::DEBUG_PORT)]
+    #[arg(long, default_value_t = spl::DEBUG_PORT)]
     debug_port: u16,
     /// Port of the GameController's packets.
-    #[arg(long, default_value_t = nao_bridge::GAMECONTROLLER_PORT)]
+    #[arg(long, default_value_t = spl::GAMECONTROLLER_PORT)]
     gamecontroller_port: u16,
     /// Our team number (finds our block in the GameController packet).
     #[arg(long, default_value_t = 19)]

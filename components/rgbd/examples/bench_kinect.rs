@@ -8,13 +8,13 @@
 
 use std::time::{Duration, Instant};
 
+use camera::RgbdDriver;
+use camera::scenario::{CameraPose, Scenario, ScenarioSim};
+use camera::sim::SensorModel;
 use freenect::device::{DepthFormat, Device, Library};
 use freenect::fakenect::DumpWriter;
 use freenect::kinect::{DepthCalibration, unregister};
-use rgbd::RgbdDriver;
 use rgbd::kinect::{Converter, fakenect_library};
-use rgbd::scenario::{CameraPose, Scenario, ScenarioSim};
-use rgbd::sim::SensorModel;
 
 const FRAMES: usize = 300;
 

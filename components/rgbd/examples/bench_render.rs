@@ -3,8 +3,8 @@
 
 use std::time::Instant;
 
+use camera::sim::{HandArm, Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 use nalgebra::{Point3, Vector3};
-use rgbd::sim::{HandArm, Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 
 fn main() {
     let cam = SimCamera::vga(look_at(

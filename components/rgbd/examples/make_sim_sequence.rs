@@ -8,9 +8,9 @@
 
 use std::io::Write;
 
+use camera::playback::TumWriter;
+use camera::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 use nalgebra::{Point3, Vector3};
-use rgbd::playback::TumWriter;
-use rgbd::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);

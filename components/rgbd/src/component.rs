@@ -13,7 +13,7 @@
 //! finite are ignored and counted (`joint_states_non_finite`), values beyond the URDF limits
 //! clamped and counted (`joint_states_clamped`); chain joints a state does not name keep their
 //! value (logged once); frames rendered while the newest joint state is older than
-//! [`crate::world::MAX_JOINT_STATE_AGE_NS`] are counted (`joint_states_stale_frames`) and logged
+//! [`camera::world::MAX_JOINT_STATE_AGE_NS`] are counted (`joint_states_stale_frames`) and logged
 //! at most once a second.
 //!
 //! Drivers (`--driver`), both behind the library's [`RgbdDriver`] trait:
@@ -26,7 +26,7 @@
 //!     rest posture (all joints 0, clamped into their limits), which the log says once.
 //!   - The ball: scripted by `--scenario` over the lab scene (a table 1.2 m ahead), or with
 //!     `--ball-from-topic` the simulated world's ball on `sim/ball` ([`SimBall`]) over the
-//!     game's scene ([`crate::sim::Scene::game`]: a table 0.4 to 1.1 m ahead at 0.75 m, a
+//!     game's scene ([`camera::sim::Scene::game`]: a table 0.4 to 1.1 m ahead at 0.75 m, a
 //!     textured wall), drawn with the person's hand and forearm when `held`; no ball before the
 //!     first message nor while `present = false`.
 //!   - Stamps: the bus clock when the frame is rendered; with `--camera-from-joints`, the stamp
@@ -43,22 +43,22 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use deep_representation::kinematics::RobotModel;
-use deep_representation::service::find_model;
 use interfaces::msg::body::JointStates;
 use interfaces::msg::tracking::{BallTruth, SimBall};
 use interfaces::msg::vision::{CameraStatus, RgbdFrame};
 use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Header, Shutdown, topics};
+use robot_model::RobotModel;
+use robot_model::find_model;
 
-use crate::RgbdDriver;
-use crate::convert::{into_msg, seconds_to_ns};
 use crate::kinect::{DepthMode, Event, KinectConfig, KinectSim, KinectSource, LibraryChoice};
-use crate::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
-use crate::scenario::{BallGroundTruth, CameraPose, Scenario, ScenarioSim};
-use crate::sim::SensorModel;
-use crate::world::{HeadCamera, RobotPose, WorldSim, frame_stamp_ns, joint_state_fresh};
+use camera::RgbdDriver;
+use camera::convert::{into_msg, seconds_to_ns};
+use camera::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
+use camera::scenario::{BallGroundTruth, CameraPose, Scenario, ScenarioSim};
+use camera::sim::SensorModel;
+use camera::world::{HeadCamera, RobotPose, WorldSim, frame_stamp_ns, joint_state_fresh};
 
 /// Which driver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -223,7 +223,7 @@ impl SimWorld {
         }
     }
 
-    fn next_frame(&mut self, now_s: f64) -> Result<Option<crate::Frame>, crate::DriverError> {
+    fn next_frame(&mut self, now_s: f64) -> Result<Option<camera::Frame>, camera::DriverError> {
         match self {
             SimWorld::Scenario(s) => s.next_frame(now_s),
             SimWorld::Topic(s) => s.next_frame(now_s),

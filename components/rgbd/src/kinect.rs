@@ -28,7 +28,7 @@ use freenect::device::{DepthFormat, Device, DeviceError, Library, RawFrame, Tilt
 use freenect::fakenect::{LiveDump, Offer, RawTilt};
 use freenect::kinect::{DepthCalibration, RawToMm, register, unregister};
 
-use crate::{Frame, Intrinsics};
+use camera::{Frame, Intrinsics};
 
 /// Which depth format to ask the device for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

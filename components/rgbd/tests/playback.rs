@@ -5,12 +5,12 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Point3, Vector3};
-use rgbd::playback::{
+use camera::playback::{
     OpenOptions, PlaybackDriver, PlaybackError, PlaybackMode, TumSequence, TumWriter,
 };
-use rgbd::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
-use rgbd::{DriverError, RgbdDriver};
+use camera::sim::{Scene, SensorModel, SimCamera, SimRenderer, Sphere, look_at};
+use camera::{DriverError, RgbdDriver};
+use nalgebra::{Point3, Vector3};
 
 fn shipped() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sim_ball_seq")

@@ -1,17 +1,11 @@
 //! # speech_generator: text to speech for robocog
 //!
-//! The robot speaks with espeak-ng ([`synth`]); requests wait in a priority queue ([`queue`]) and
+//! The robot speaks with espeak-ng (the `audio` library's `synth`); requests wait in a priority queue ([`queue`]) and
 //! an urgent one interrupts. The component (`src/main.rs`) takes [`SayRequest`]s on `speech/say`,
 //! publishes [`SpeakingEvent`]s on `speech/speaking` and the synthesized audio, paced in real
 //! time, on `audio/out` (16 kHz mono s16le chunks of 100 ms).
 //!
-//! [`wav`] and [`audio`] (resampling, noise, SNR mixing) are shared with the recognizer's tools and
-//! tests.
-//!
 //! [`SayRequest`]: interfaces::msg::speech::SayRequest
 //! [`SpeakingEvent`]: interfaces::msg::speech::SpeakingEvent
 
-pub mod audio;
 pub mod queue;
-pub mod synth;
-pub mod wav;

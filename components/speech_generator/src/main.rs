@@ -1,13 +1,13 @@
 //! The speech generator component: `speech/say` in; `speech/speaking` and `audio/out` out.
 //! See the library doc for the queue rules and the audio format.
 
+use audio::synth::{self, Voice};
+use audio::wav::{self, Pcm};
 use clap::Parser;
 use interfaces::msg::speech::{AudioChunk, SayRequest, SpeakingEvent, SpeakingState};
 use interfaces::node::{self, Interface, NodeArgs};
 use interfaces::topics;
 use speech_generator::queue::{Event, SpeechQueue};
-use speech_generator::synth::{self, Voice};
-use speech_generator::wav::{self, Pcm};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;

@@ -25,10 +25,10 @@
 //! `<n> <game> <snr> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
 //! comparison of `scripts/bench.d/speech.sh`. The last line printed is a JSON summary.
 
+use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+use audio::synth::synthesize_16k;
+use audio::wav::{Pcm, encode};
 use interfaces::msg::command::{Command, Game};
-use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::synthesize_16k;
-use speech_generator::wav::{Pcm, encode};
 use speech_recognition::model::AcousticModel;
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
@@ -217,7 +217,7 @@ fn main() {
         let (mut fa, mut n_oog, mut asked) = (0, 0, 0);
         for (i, s) in OOG.iter().enumerate() {
             for v in VOICES {
-                let voice = speech_generator::synth::Voice {
+                let voice = audio::synth::Voice {
                     voice: v.to_string(),
                     ..Default::default()
                 };

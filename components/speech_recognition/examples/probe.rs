@@ -3,9 +3,9 @@
 //! aid): `probe <game> <sentence>...`. Environment: `VOICE` (espeak-ng voice, default en-us),
 //! `SPEED` (words per minute), `SNR` (dB of white noise, default none), `SCALE` (the confidence's
 //! acoustic scale), `NBEST` (print the N-best list).
+use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+use audio::synth::{Voice, synthesize_16k};
 use interfaces::msg::command::Game;
-use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::{Voice, synthesize_16k};
 use speech_recognition::confidence::ConfidenceConfig;
 use speech_recognition::{Recognizer, RecognizerConfig};
 

@@ -7,10 +7,10 @@
 //! acoustic model), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
 //! `ROBUST=0` (PocketSphinx's own noise settings), `DENOISE=1` (the enhancement; `GFLOOR`,
 //! `OVERSUB` tune it), `VERBOSE` (list every error).
+use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+use audio::synth::synthesize_16k;
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
-use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::synthesize_16k;
 use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig};
 

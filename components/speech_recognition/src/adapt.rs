@@ -31,9 +31,9 @@
 
 use crate::garbage::Dictionary;
 use crate::model::{MODEL_FILES, PROVENANCE_FILE, check_model_dir};
+use audio::signal::{NoiseKind, NoiseRng, mix_at_snr, resample};
+use audio::synth::{Voice, synthesize_16k};
 use interfaces::msg::command::{Command, Game};
-use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr, resample};
-use speech_generator::synth::{Voice, synthesize_16k};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command as Process;
@@ -112,7 +112,7 @@ pub enum AdaptError {
         examples: String,
     },
     #[error("speech synthesis: {0}")]
-    Synth(#[from] speech_generator::synth::SynthError),
+    Synth(#[from] audio::synth::SynthError),
     #[error("{step} failed (exit {status}); log {log}: {tail}")]
     Step {
         step: &'static str,
@@ -353,13 +353,12 @@ impl CorpusWriter {
         let id = format!("u{:05}", self.n);
         let path = self.dir.join("wav").join(format!("{id}.wav"));
         self.samples += samples.len();
-        let pcm = speech_generator::wav::Pcm {
+        let pcm = audio::wav::Pcm {
             sample_rate_hz: crate::vad::RATE_HZ,
             channels: 1,
             samples,
         };
-        std::fs::write(&path, speech_generator::wav::encode(&pcm))
-            .map_err(|e| file_err(&path, e))?;
+        std::fs::write(&path, audio::wav::encode(&pcm)).map_err(|e| file_err(&path, e))?;
         let _ = writeln!(self.ids, "{id}");
         let _ = writeln!(self.transcription, "<s> {words} </s> ({id})");
         self.words.push((words.to_string(), source.to_string()));
@@ -450,7 +449,7 @@ fn recordings_corpus(
             return Err(rec_err(format!("{} is empty", txt.display())));
         }
         let bytes = std::fs::read(&wav).map_err(|e| file_err(&wav, e))?;
-        let pcm = speech_generator::wav::parse(&bytes).map_err(|e| file_err(&wav, e))?;
+        let pcm = audio::wav::parse(&bytes).map_err(|e| file_err(&wav, e))?;
         let samples = resample(&pcm.to_mono(), pcm.sample_rate_hz, crate::vad::RATE_HZ);
         if samples.len() < crate::vad::RATE_HZ as usize / 5 {
             return Err(rec_err(format!("{} is shorter than 0.2 s", wav.display())));

@@ -255,7 +255,7 @@ fn fft(re: &mut [f64], im: &mut [f64], inverse: bool) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use speech_generator::audio::{NoiseKind, NoiseRng, noise};
+    use audio::signal::{NoiseKind, NoiseRng, noise};
 
     fn tone(n: usize, amp: f64) -> Vec<i16> {
         (0..n)

@@ -152,10 +152,9 @@ fn main() -> ExitCode {
         if let Some(path) = wav {
             let bytes = std::fs::read(&path)
                 .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
-            let pcm = speech_generator::wav::parse(&bytes)
+            let pcm = audio::wav::parse(&bytes)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-            let samples =
-                speech_generator::audio::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ);
+            let samples = audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ);
             let (results, rec) = tokio::task::spawn_blocking(move || {
                 let mut v = recognizer.push(&samples)?;
                 v.extend(recognizer.flush()?);

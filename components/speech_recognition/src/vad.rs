@@ -287,7 +287,7 @@ impl Vad {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use speech_generator::audio::{NoiseKind, NoiseRng, noise};
+    use audio::signal::{NoiseKind, NoiseRng, noise};
 
     /// A burst of a 300 Hz tone with 3 harmonics, amplitude `amp`, lasting `secs`.
     fn burst(secs: f64, amp: f64) -> Vec<i16> {

@@ -5,13 +5,21 @@
 
 mod common;
 
+use audio::wav::{Pcm, encode};
 use common::{spoken, voice};
 use interfaces::msg::command::{Command, Game};
-use speech_generator::wav::{Pcm, encode};
 use speech_recognition::model::{AcousticModel, PROVENANCE_FILE};
 use speech_recognition::{Recognizer, RecognizerConfig};
 use std::path::Path;
 use std::process::{Command as Process, Output};
+
+/// A fresh folder of this test's own under the system's temporary folder (emptied first).
+fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join("robocog-speech-tests").join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("scratch folder");
+    d
+}
 
 fn speech_model(args: &[&str]) -> Output {
     Process::new(env!("CARGO_BIN_EXE_speech_model"))
@@ -32,7 +40,7 @@ fn write_recording(dir: &Path, name: &str, text: &str, samples: Vec<i16>) {
 
 #[test]
 fn recordings_adapt_a_model_the_recognizer_loads() {
-    let dir = robocog_tests::scratch("adapt-recordings");
+    let dir = scratch("adapt-recordings");
     let rec = dir.join("recordings");
     std::fs::create_dir_all(&rec).unwrap();
     let mut i = 0;
@@ -90,7 +98,7 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
 
 #[test]
 fn bad_recordings_get_clear_errors() {
-    let dir = robocog_tests::scratch("adapt-bad");
+    let dir = scratch("adapt-bad");
     let out = dir.join("model");
     let o = out.to_str().unwrap();
     let case = |name: &str, setup: &dyn Fn(&Path)| -> String {

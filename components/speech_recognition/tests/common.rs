@@ -2,8 +2,8 @@
 //! Test audio: commands spoken by espeak-ng in several voices, speeds and pitches, mixed with
 //! noise at a chosen SNR.
 
-use speech_generator::audio::{NoiseKind, NoiseRng, mix_at_snr};
-use speech_generator::synth::{Voice, synthesize_16k};
+use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+use audio::synth::{Voice, synthesize_16k};
 
 pub fn voice(name: &str, speed_wpm: u32, pitch: u8) -> Voice {
     Voice {

@@ -4,9 +4,9 @@
 
 mod common;
 
+use audio::signal::gain_clipped;
 use common::*;
 use interfaces::msg::command::{Command, Game};
-use speech_generator::audio::gain_clipped;
 use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig, RecognizerError};
 use std::collections::HashSet;
@@ -118,7 +118,7 @@ fn a_broken_grammar_file_is_a_clear_error_naming_it() {
 /// Every command of `game`, said by each of `voices` at `snr_db`, through the end-pointer.
 fn accuracy(
     game: Game,
-    voices: &[speech_generator::synth::Voice],
+    voices: &[audio::synth::Voice],
     snr_db: f64,
 ) -> (usize, usize, Vec<String>) {
     let mut rec = recognizer(game);
@@ -306,7 +306,7 @@ fn bad_input_is_handled() {
     }
     // Audio at the wrong rate (22 050 Hz fed as 16 kHz) is slowed and pitched down: it is not
     // turned into a confident command.
-    let raw = speech_generator::synth::synthesize("touch the ball", &v).unwrap();
+    let raw = audio::synth::synthesize("touch the ball", &v).unwrap();
     let r = rec.decode_all(&raw.samples).unwrap();
     eprintln!("wrong rate -> {:?} {:.2}", r.text, r.confidence);
     assert!((0.0..=1.0).contains(&r.confidence));

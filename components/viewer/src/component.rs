@@ -4,20 +4,20 @@
 use crate::blueprint::{self, Game};
 use crate::intake::{Intake, Sample};
 use crate::mapping::{MapError, Mapper, MapperOptions};
-use deep_representation::field::FieldModel;
-use deep_representation::kinematics::RobotModel;
-use deep_representation::service::find_model;
 use interfaces::msg::Message;
 use interfaces::msg::dr::{SnapshotData, SnapshotRequest};
 use interfaces::node::Interface;
 use interfaces::ratelimit::RateLimiter;
 use interfaces::{Bus, Shutdown, topics};
+use robot_model::RobotModel;
+use robot_model::find_model;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
 use std::time::{Duration, Instant};
+use world_model::field::FieldModel;
 
 /// What the viewer does (from the command line).
 #[derive(Debug)]

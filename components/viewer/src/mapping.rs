@@ -4,10 +4,6 @@
 //! model, the ball's trajectory, which static geometry was drawn, per-topic rates): no bus, no
 //! viewer. See the crate doc for the entity table, frames and units.
 
-use deep_representation::field::FieldModel;
-use deep_representation::graph::{At, SceneGraph};
-use deep_representation::kinematics::{RobotModel, Shape};
-use deep_representation::types::ChangeEvent;
 use interfaces::Header;
 use interfaces::codec::{self, CodecError};
 use interfaces::msg::{self, Message};
@@ -16,7 +12,11 @@ use interfaces::msg::{
 };
 use nalgebra::Isometry3;
 use rerun::AsComponents;
+use robot_model::{RobotModel, Shape};
 use std::collections::{BTreeMap, HashMap, VecDeque};
+use world_model::field::FieldModel;
+use world_model::graph::{At, SceneGraph};
+use world_model::types::ChangeEvent;
 
 /// One thing to log: an archetype at an entity path.
 pub struct Logged {
@@ -1596,10 +1596,10 @@ mod tests {
 
     #[test]
     fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
-        use deep_representation::types::Stamp;
+        use world_model::types::Stamp;
         let mut mp = mapper();
         assert!(mp.wants_dr_snapshot());
-        let mut g = deep_representation::scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
+        let mut g = world_model::scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
         let snap = dr::SnapshotData {
             json: g.snapshot_json(),
             nodes: g.len() as u32,

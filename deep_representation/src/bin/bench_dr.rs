@@ -1,6 +1,6 @@
 //! Benchmark of the deep representation: in-process lookups and the bus round trip.
 //!
-//! 1. The library's in-process figures ([`deep_representation::bench::local_lookup_bench`]):
+//! 1. The library's in-process figures ([`world_model::bench::local_lookup_bench`]):
 //!    `transform(world, left_fingertip)` through 13 joints, latest and at a past time, chain FK,
 //!    fork, a whole what-if.
 //! 2. The service over the bus: a zenoh router on `tcp/127.0.0.1:<free port>` in this process (as
@@ -18,14 +18,14 @@
 use std::time::{Duration, Instant};
 
 use clap::Parser;
-use deep_representation::bench::{Row, local_lookup_bench, stats};
-use deep_representation::kinematics::RobotModel;
 use deep_representation::service::{self, Scene, ServiceConfig};
 use interfaces::bus::BusOptions;
 use interfaces::msg::dr::{JointUpdate, TransformRequest, UpdateRequest};
 use interfaces::msg::std_msgs::Text;
 use interfaces::router::open_router;
 use interfaces::{Bus, ConnectArgs, Header, topics};
+use robot_model::RobotModel;
+use world_model::bench::{Row, local_lookup_bench, stats};
 
 #[derive(Debug, Parser)]
 struct Args {

@@ -5,7 +5,7 @@
 //! - Joints are named as in the URDF (`models/loki.urdf`). Revolute joints in rad, rad/s;
 //!   prismatic joints in m, m/s.
 //! - A **body part** is a named chain of the URDF (`left_arm_7`, `left_arm_11`, `left_arm_13`,
-//!   `neck`, ...; `deep_representation::kinematics::BODY_PARTS`).
+//!   `neck`, ...; `robot_model::BODY_PARTS`).
 //! - Reach targets name a frame of the deep representation (`world`, `torso`, `ball`, ...): the
 //!   IK component asks the DR for the target in the chain's root frame. A target that names a
 //!   moving node (`ball`) can be **followed**: re-solved as the node moves.

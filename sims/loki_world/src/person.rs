@@ -13,13 +13,13 @@
 
 use crate::ball::{Ball, BallState, dist};
 use crate::scenario::{BallMove, Expect, Scenario, Step};
+use audio::signal::{self as pcm, NoiseKind, NoiseRng};
+use audio::synth::{self, Voice};
 use interfaces::msg::body::ReachState;
 use interfaces::msg::dr::TransformRequest;
 use interfaces::msg::speech::{AudioChunk, SpeakingState};
 use interfaces::msg::tracking::{BallEventKind, SimBall};
 use interfaces::{Bus, CallError, topics};
-use speech_generator::audio::{self as pcm, NoiseKind, NoiseRng};
-use speech_generator::synth::{self, Voice};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};

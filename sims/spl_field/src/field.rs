@@ -5,7 +5,7 @@
 
 use std::f64::consts::PI;
 
-use nao_bridge::FieldPoint;
+use spl::FieldPoint;
 
 /// Half the field length (mm): the field is 9000 mm long.
 pub const FIELD_HALF_LENGTH_MM: f64 = 4500.0;

@@ -12,7 +12,7 @@
 //! # Robots
 //!
 //! - Player 2 of our team, the **controlled** robot (role 18): obeys the 11-byte command
-//!   packets given to [`SplField::receive_command`] (decoded by `nao_bridge`'s strict robot-side
+//!   packets given to [`SplField::receive_command`] (decoded by the `spl` library's strict robot-side
 //!   decoder), with the behaviour card's semantics, intent rather than quirks: GoToPosition walks
 //!   to (x, y); Dribble pushes a ball at the feet towards a free point (stands if the ball is
 //!   farther than 600 mm); GoToBallAndDribble walks to the ball and dribbles; Kick shoots at the
@@ -43,7 +43,7 @@
 //! # Output
 //!
 //! Every 100 ms a 356-byte debug packet per robot of ours, every 500 ms a 118-byte
-//! GameController packet, both encoded by `nao_bridge`. Deterministic for a given seed
+//! GameController packet, both encoded by the `spl` library. Deterministic for a given seed
 //! ([`rng::SimRng`], no system randomness).
 
 pub mod field;

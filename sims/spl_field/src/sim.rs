@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-use nao_bridge::{
+use spl::{
     BodyCommand, FieldPoint, GameControllerState, GamePhase, GameState, HeadCommand,
     LocalWorldModel, NaoCommand, Obstacle, ObstacleKind, PacketError, Penalty, PlayerInfo,
     PlayerRole, Pose2, SetPlay, Strategy, TeamInfo, WhistleState, decode_command, encode_debug,

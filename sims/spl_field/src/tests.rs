@@ -1,6 +1,6 @@
 //! Scenario tests of the field: physics, behaviours, rules, timeline, packets, determinism.
 
-use nao_bridge::{
+use spl::{
     BodyCommand, FieldPoint, FusionConfig, GameState, HeadCommand, NaoCommand, Strategy,
     WorldModelFusion, decode_debug, decode_gamecontroller, encode_command,
 };
@@ -705,7 +705,7 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
         out.iter()
             .filter_map(|d| match d {
                 Datagram::GameController { bytes } => {
-                    let s = nao_bridge::decode_gamecontroller(bytes).unwrap();
+                    let s = spl::decode_gamecontroller(bytes).unwrap();
                     let p = s.teams[0].players[1];
                     Some((p.penalty, p.secs_till_unpenalised))
                 }
@@ -716,12 +716,12 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
     let out = f.step(1.9);
     assert_eq!(
         penalty_of_player_2(&out).map(|p| p.0),
-        Some(nao_bridge::Penalty::None)
+        Some(spl::Penalty::None)
     );
     let moving = pos(&f, RobotId::CONTROLLED);
     let out = f.step(1.0);
     let (penalty, secs) = penalty_of_player_2(&out).unwrap();
-    assert_eq!(penalty, nao_bridge::Penalty::Pushing);
+    assert_eq!(penalty, spl::Penalty::Pushing);
     assert!((4..=5).contains(&secs), "{secs} s left");
     assert!(f.robot(RobotId::CONTROLLED).unwrap().is_penalised());
     // Penalised: it stands, whatever it is told.
@@ -739,7 +739,7 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
     let out = f.step(1.5);
     assert_eq!(
         penalty_of_player_2(&out).map(|p| p.0),
-        Some(nao_bridge::Penalty::None)
+        Some(spl::Penalty::None)
     );
     f.step(1.0);
     assert_ne!(pos(&f, RobotId::CONTROLLED), p0);

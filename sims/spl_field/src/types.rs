@@ -3,8 +3,8 @@
 //!
 //! Units: millimetres, radians, seconds of simulated time.
 
-use nao_bridge::GameState;
 use serde::{Deserialize, Serialize};
+use spl::GameState;
 
 /// Which side a robot plays for. `Us` attacks towards +x (the coach's team), `Them` defends the
 /// goal at x = +4500 mm.

@@ -4,7 +4,7 @@
 // Each example uses part of it.
 #![allow(dead_code)]
 
-use speech_generator::synth::Voice;
+use audio::synth::Voice;
 
 /// The evaluation voices: never used to tune anything.
 pub const EVAL_VOICES: [&str; 6] = [

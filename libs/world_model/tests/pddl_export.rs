@@ -3,23 +3,27 @@
 
 #![allow(clippy::unwrap_used)] // tests may unwrap (STYLE: no unwrap outside tests)
 
-use deep_representation::field::FieldModel;
-use deep_representation::graph::{At, SceneGraph, translation};
-use deep_representation::kinematics::RobotModel;
-use deep_representation::pddl::{Atom, DOMAIN, PddlProblem, domain_signature, export_problem};
-use deep_representation::predicates::{PredicateConfig, evaluate};
-use deep_representation::scenes;
-use deep_representation::types::Stamp;
+use robot_model::RobotModel;
+use world_model::field::FieldModel;
+use world_model::graph::{At, SceneGraph, translation};
+use world_model::pddl::{Atom, DOMAIN, PddlProblem, domain_signature, export_problem};
+use world_model::predicates::{PredicateConfig, evaluate};
+use world_model::scenes;
+use world_model::types::Stamp;
 
 const S: Stamp = Stamp(0);
 
 fn loki() -> RobotModel {
-    RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf")).unwrap()
+    RobotModel::from_urdf_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/loki.urdf"
+    ))
+    .unwrap()
 }
 fn field() -> FieldModel {
     FieldModel::from_file(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../models/spl_field.toml"
+        "/../../models/spl_field.toml"
     ))
     .unwrap()
 }
@@ -177,7 +181,7 @@ fn example_problem_files_are_in_sync_with_the_code() {
         let on_disk = std::fs::read_to_string(&path).unwrap();
         assert_eq!(
             text, on_disk,
-            "{path} is stale: regenerate with `cargo run -p deep_representation --example export_pddl`"
+            "{path} is stale: regenerate with `cargo run -p world_model --example export_pddl`"
         );
     }
 }

@@ -191,49 +191,8 @@ pub(crate) mod tests {
     use super::*;
     use crate::validation::DropReason;
 
-    /// A packet built by hand from the protocol page, a known value at every offset.
     pub(crate) fn hand_built() -> Vec<u8> {
-        let mut b = vec![0u8; 118];
-        b[0..4].copy_from_slice(b"RGme");
-        b[4] = 18;
-        b[5] = 201; // packet number
-        b[6] = 2; // players per team
-        b[7] = 1; // playoff
-        b[8] = 1; // shared autonomy
-        b[9] = 2; // overtime
-        b[10] = 3; // PLAYING
-        b[11] = 4; // kick-in
-        b[12] = 1; // first half
-        b[13] = 42; // kicking team
-        b[14..16].copy_from_slice(&(-12i16).to_le_bytes());
-        b[16..18].copy_from_slice(&(25i16).to_le_bytes());
-        // Team 0: number 7, the opponents.
-        b[18] = 7;
-        b[19] = 1;
-        b[20] = 2;
-        b[21] = 1;
-        b[22] = 3; // score
-        b[23] = 0;
-        b[24..26].copy_from_slice(&0x0102u16.to_le_bytes());
-        b[26..28].copy_from_slice(&900u16.to_le_bytes());
-        // Team 1: number 42, us.
-        b[68] = 42;
-        b[69] = 5;
-        b[70] = 6;
-        b[71] = 1;
-        b[72] = 4; // score
-        b[73] = 2;
-        b[74..76].copy_from_slice(&0x0304u16.to_le_bytes());
-        b[76..78].copy_from_slice(&1150u16.to_le_bytes());
-        // Every player slot of both teams: a distinct penalty code (cycling through all 16
-        // codes, 12 and 13 being unknown) and a distinct countdown.
-        for team in 0..2 {
-            for i in 0..20 {
-                b[18 + 50 * team + 10 + 2 * i] = ((i + 7 * team) % 16) as u8;
-                b[18 + 50 * team + 11 + 2 * i] = (100 * team + i + 1) as u8;
-            }
-        }
-        b
+        crate::samples::gamecontroller_packet()
     }
 
     #[test]

@@ -5,13 +5,37 @@
 //!
 //! Needs the workspace's binaries built (`cargo build --release --workspace --bins`).
 
-mod common;
-
 use interfaces::msg::command::{Answer, Command};
 use interfaces::msg::speech::{AudioChunk, Priority, SayRequest, SpeakingState};
 use interfaces::{Bus, topics};
 use robocog_tests::*;
 use std::time::Duration;
+
+mod common {
+    use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+    use audio::synth::{Voice, synthesize_16k};
+
+    pub fn voice(name: &str, speed_wpm: u32, pitch: u8) -> Voice {
+        Voice {
+            voice: name.into(),
+            speed_wpm,
+            pitch,
+        }
+    }
+
+    /// `text` spoken by `v`, between 0.6 s of white noise before and 0.8 s after, at `snr_db`.
+    pub fn spoken(text: &str, v: &Voice, snr_db: f64, seed: u64) -> Vec<i16> {
+        let speech = synthesize_16k(text, v).expect("espeak-ng speaks");
+        mix_at_snr(
+            &speech,
+            snr_db,
+            NoiseKind::White,
+            0.6,
+            0.8,
+            &mut NoiseRng::new(seed),
+        )
+    }
+}
 
 fn manifest() -> String {
     format!(

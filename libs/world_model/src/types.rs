@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
-use crate::kinematics::{CameraIntrinsics, CollisionShape, JointKind};
+use robot_model::{CameraIntrinsics, CollisionShape, JointKind};
 
 /// A time stamp: nanoseconds on the caller's clock (wall, monotonic or a replay's virtual clock;
 /// the library never reads a clock itself).

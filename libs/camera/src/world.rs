@@ -18,10 +18,10 @@
 //!   [`SimBall`]) into what the renderer draws: a sphere of the ball's hue and saturation and,
 //!   when the person holds it, their hand under it and forearm towards them.
 
-use deep_representation::kinematics::{Chain, JointLimits, RobotModel};
 use interfaces::msg::body::JointStates;
 use interfaces::msg::tracking::SimBall;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use robot_model::{Chain, JointLimits, RobotModel};
 
 use crate::scenario::{BallGroundTruth, ball_truth};
 use crate::sim::{HandArm, Scene, SensorModel, SimCamera, SimDriver, SimRenderer, Sphere};
@@ -36,7 +36,7 @@ pub enum HeadCameraError {
         /// The camera's optical frame asked for.
         frame: String,
         /// The model's error.
-        source: deep_representation::DrError,
+        source: robot_model::ModelError,
     },
 }
 

@@ -29,7 +29,7 @@ pub enum DrError {
     /// A joint name that is not in the graph/model.
     #[error("unknown joint `{0}`")]
     UnknownJoint(String),
-    /// A body part name that is not one of the documented names (see [`crate::kinematics::BodyPart`]).
+    /// A body part name that is not one of the documented names (see `robot_model::BodyPart`).
     #[error("unknown body part `{0}` (known: {1})")]
     UnknownBodyPart(String, String),
     /// `root` is not an ancestor of `tip`, so there is no open chain from one to the other.
@@ -82,6 +82,23 @@ pub enum DrError {
     /// A change-log event that cannot be applied to this graph.
     #[error("cannot apply change event: {0}")]
     BadEvent(String),
+}
+
+impl From<robot_model::ModelError> for DrError {
+    fn from(e: robot_model::ModelError) -> Self {
+        use robot_model::ModelError as M;
+        match e {
+            M::MalformedUrdf(m) => DrError::MalformedUrdf(m),
+            M::InvalidModel(m) => DrError::InvalidModel(m),
+            M::Io { path, source } => DrError::Io { path, source },
+            M::UnknownFrame(f) => DrError::UnknownFrame(f),
+            M::UnknownJoint(j) => DrError::UnknownJoint(j),
+            M::UnknownBodyPart(p, known) => DrError::UnknownBodyPart(p, known),
+            M::NotAChain { root, tip } => DrError::NotAChain { root, tip },
+            M::JointCount { expected, got } => DrError::JointCount { expected, got },
+            M::NonFiniteValue(j) => DrError::NonFiniteValue(j),
+        }
+    }
 }
 
 /// Result alias of the crate.

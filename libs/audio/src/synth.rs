@@ -83,7 +83,7 @@ pub fn synthesize(text: &str, voice: &Voice) -> Result<Pcm, SynthError> {
 /// Synthesize and convert to 16 kHz mono (what the recognizer takes).
 pub fn synthesize_16k(text: &str, voice: &Voice) -> Result<Vec<i16>, SynthError> {
     let pcm = synthesize(text, voice)?;
-    Ok(crate::audio::resample(
+    Ok(crate::signal::resample(
         &pcm.to_mono(),
         pcm.sample_rate_hz,
         16_000,
@@ -120,7 +120,7 @@ mod tests {
         );
         assert!(fast.duration_s() < slow.duration_s() * 0.75);
         let a = synthesize_16k("-- a dash first", &Voice::default()).unwrap();
-        assert!(crate::audio::active_power(&a) > 1e-4);
+        assert!(crate::signal::active_power(&a) > 1e-4);
         assert!(matches!(
             synthesize("  ", &Voice::default()),
             Err(SynthError::Empty)

@@ -1,13 +1,13 @@
 //! In-process transform lookup benchmark of the deep representation (no bus).
 //!
-//! What it measures is documented in [`deep_representation::bench`]; the `bench_dr` binary runs
+//! What it measures is documented in [`world_model::bench`]; the `bench_dr` binary runs
 //! the same figures and adds the bus round trip of the `dr/transform` service.
 //!
-//! Run: `cargo run --release -p deep_representation --example bench_dr_local [-- N]`
+//! Run: `cargo run --release -p world_model --example bench_dr_local [-- N]`
 //! (N lookups per row, default 1,000,000). The last line is one JSON object.
 
-use deep_representation::bench::local_lookup_bench;
-use deep_representation::kinematics::RobotModel;
+use robot_model::RobotModel;
+use world_model::bench::local_lookup_bench;
 
 fn main() -> anyhow::Result<()> {
     let n: usize = std::env::args()
@@ -15,7 +15,7 @@ fn main() -> anyhow::Result<()> {
         .map(|s| s.parse())
         .transpose()?
         .unwrap_or(1_000_000);
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/loki.urdf");
     let model = RobotModel::from_urdf_file(path)?;
     let b = local_lookup_bench(&model, n)?;
     println!(

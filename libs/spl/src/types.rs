@@ -731,7 +731,7 @@ impl GameControllerState {
     }
 }
 
-/// Link state changes of one robot (see [`crate::link::LinkMonitor`]).
+/// Link state changes of one robot (see `LinkMonitor` of the Nao bridge).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum LinkEvent {
     /// The first packet ever arrived.

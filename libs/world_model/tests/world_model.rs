@@ -2,26 +2,28 @@
 
 #![allow(clippy::unwrap_used)] // tests may unwrap (STYLE: no unwrap outside tests)
 
-use deep_representation::error::DrError;
-use deep_representation::field::FieldModel;
-use deep_representation::graph::{At, RejectReason, SceneGraph, translation};
-use deep_representation::kinematics::RobotModel;
-use deep_representation::predicates::{
-    Fact, PredicateConfig, PredicateKind as P, evaluate, fork_report,
-};
-use deep_representation::scenes;
-use deep_representation::types::{
+use nalgebra::{Point3, Vector3};
+use robot_model::RobotModel;
+use world_model::error::DrError;
+use world_model::field::FieldModel;
+use world_model::graph::{At, RejectReason, SceneGraph, translation};
+use world_model::predicates::{Fact, PredicateConfig, PredicateKind as P, evaluate, fork_report};
+use world_model::scenes;
+use world_model::types::{
     AttrValue, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Pose, Proposal, Stamp,
 };
-use nalgebra::{Point3, Vector3};
 
 fn loki() -> RobotModel {
-    RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf")).unwrap()
+    RobotModel::from_urdf_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/loki.urdf"
+    ))
+    .unwrap()
 }
 fn field() -> FieldModel {
     FieldModel::from_file(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../models/spl_field.toml"
+        "/../../models/spl_field.toml"
     ))
     .unwrap()
 }

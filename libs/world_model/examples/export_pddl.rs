@@ -1,20 +1,20 @@
-//! Prints the PDDL problem of a ready-made scene (see `deep_representation::scenes`).
+//! Prints the PDDL problem of a ready-made scene (see `world_model::scenes`).
 //!
-//! `cargo run -p deep_representation --example export_pddl -- touch|coach`
+//! `cargo run -p world_model --example export_pddl -- touch|coach`
 //! The files in `deep_representation/pddl/examples/` are this program's output; a test checks
 //! that they stay in sync with the code.
 
-use deep_representation::field::FieldModel;
-use deep_representation::graph::At;
-use deep_representation::kinematics::RobotModel;
-use deep_representation::pddl::{Atom, export_problem};
-use deep_representation::predicates::PredicateConfig;
-use deep_representation::scenes;
-use deep_representation::types::Stamp;
+use robot_model::RobotModel;
+use world_model::field::FieldModel;
+use world_model::graph::At;
+use world_model::pddl::{Atom, export_problem};
+use world_model::predicates::PredicateConfig;
+use world_model::scenes;
+use world_model::types::Stamp;
 
 fn main() -> anyhow::Result<()> {
     let which = std::env::args().nth(1).unwrap_or_else(|| "touch".into());
-    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/../models");
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models");
     let (g, name, goal) = match which.as_str() {
         "touch" => {
             let loki = RobotModel::from_urdf_file(format!("{models}/loki.urdf"))?;

@@ -18,10 +18,10 @@ use std::time::Instant;
 
 use crate::error::Result;
 use crate::graph::At;
-use crate::kinematics::RobotModel;
 use crate::predicates::{PredicateConfig, fork_report};
 use crate::scenes;
 use crate::types::Stamp;
+use robot_model::RobotModel;
 
 /// Order statistics of one measured quantity (ns).
 #[derive(Debug, Clone, PartialEq)]
@@ -210,9 +210,11 @@ mod tests {
 
     #[test]
     fn the_bench_runs_on_loki_and_measures_the_whole_chain() {
-        let model =
-            RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf"))
-                .unwrap();
+        let model = RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap();
         let b = local_lookup_bench(&model, 200).unwrap();
         assert!(b.chain_edges >= 15, "{}", b.chain_edges);
         assert_eq!(b.latest.count, 200);

@@ -4,8 +4,8 @@
 
 #![allow(clippy::unwrap_used)] // tests may unwrap (STYLE: no unwrap outside tests)
 
-use deep_representation::kinematics::RobotModel;
 use nalgebra::Matrix4;
+use robot_model::RobotModel;
 
 fn trans(x: f64, y: f64, z: f64) -> Matrix4<f64> {
     Matrix4::new(
@@ -32,7 +32,11 @@ fn rz(a: f64) -> Matrix4<f64> {
 }
 
 fn loki() -> RobotModel {
-    RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf")).unwrap()
+    RobotModel::from_urdf_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/loki.urdf"
+    ))
+    .unwrap()
 }
 
 fn assert_close(name: &str, got: &Matrix4<f64>, want: &Matrix4<f64>) {

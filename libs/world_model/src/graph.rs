@@ -16,12 +16,12 @@ use std::collections::{BTreeMap, HashMap, VecDeque};
 use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
 
 use crate::error::{DrError, Result};
-use crate::kinematics::{
-    CameraIntrinsics, Chain, CollisionShape, JointKind, JointLimits, RobotModel, joint_motion,
-};
 use crate::types::{
     AttrValue, BodyPartSpec, ChangeEvent, EdgeSpec, LimitsSpec, NodeSpec, NodeType, Pose, Proposal,
     SNAPSHOT_FORMAT, SNAPSHOT_VERSION, Snapshot, Stamp, attr,
+};
+use robot_model::{
+    CameraIntrinsics, Chain, CollisionShape, JointKind, JointLimits, RobotModel, joint_motion,
 };
 
 /// Name of the root node.

@@ -12,8 +12,8 @@ use nalgebra::Isometry3;
 use crate::error::{DrError, Result};
 use crate::field::FieldModel;
 use crate::graph::SceneGraph;
-use crate::kinematics::RobotModel;
 use crate::types::{AttrValue, NodeSpec, NodeType, Pose, Proposal, Stamp, attr};
+use robot_model::RobotModel;
 
 fn add(g: &mut SceneGraph, spec: NodeSpec, stamp: Stamp) -> Result<()> {
     g.propose(

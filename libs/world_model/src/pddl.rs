@@ -1,6 +1,6 @@
 //! PDDL export of the current state, and a small PDDL reader for problems (and domains' headers).
 //!
-//! The domain is `deep_representation/pddl/robocog-domain.pddl` ([`DOMAIN`] embeds it). A problem
+//! The domain is `libs/world_model/pddl/robocog-domain.pddl` ([`DOMAIN`] embeds it). A problem
 //! declares as objects every node that a true fact mentions, typed by node type (`ball`, `item`
 //! for other objects, `robot`, `human`, `camera`, `goalpost`, `landmark`, `field`, `effector` for
 //! hand links) and the declared body parts (`bodypart`); `:init` lists the true facts of

@@ -224,7 +224,7 @@ mod tests {
     fn spl() -> FieldModel {
         FieldModel::from_file(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../models/spl_field.toml"
+            "/../../models/spl_field.toml"
         ))
         .unwrap()
     }
@@ -266,7 +266,7 @@ mod tests {
         ));
         let text = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../models/spl_field.toml"
+            "/../../models/spl_field.toml"
         ))
         .unwrap();
         let typo = text.replace("width_mm = 6000.0", "widht_mm = 6000.0");

@@ -1,4 +1,7 @@
-//! Robot models from URDF, kinematic chains, forward kinematics and geometric Jacobians.
+//! # robot_model: robot models from URDF, kinematic chains, forward kinematics and geometric Jacobians
+//!
+//! Not a process: the deep representation, the IK, the joint motors, the camera and the viewer
+//! share it. [`find_model`] locates a model file of the repository's `models/` folder.
 //!
 //! # Conventions
 //! - Units: metres, radians, m/s and rad/s, as in URDF.
@@ -34,7 +37,86 @@ use std::path::Path;
 use nalgebra::{Isometry3, Matrix6xX, Translation3, Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{DrError, Result};
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Errors of robot models: reading and checking a URDF, chains, joint vectors.
+#[derive(Debug, Error)]
+pub enum ModelError {
+    /// The URDF text could not be parsed (bad XML, missing required attributes, bad numbers).
+    #[error("malformed URDF: {0}")]
+    MalformedUrdf(String),
+    /// The URDF parsed but is not a tree (no single root, a link with two parents, a joint that
+    /// names an undeclared link, an unsupported joint type, a zero axis).
+    #[error("invalid URDF model: {0}")]
+    InvalidModel(String),
+    /// A model file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The path that was read.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A link name that is not in the model.
+    #[error("unknown frame `{0}`")]
+    UnknownFrame(String),
+    /// A joint name that is not in the model.
+    #[error("unknown joint `{0}`")]
+    UnknownJoint(String),
+    /// A body part name that is not one of the documented names (see [`BodyPart`]).
+    #[error("unknown body part `{0}` (known: {1})")]
+    UnknownBodyPart(String, String),
+    /// `root` is not an ancestor of `tip`, so there is no open chain from one to the other.
+    #[error("no kinematic chain from `{root}` to `{tip}`: `{root}` is not an ancestor of `{tip}`")]
+    NotAChain {
+        /// Chain root link.
+        root: String,
+        /// Chain tip link.
+        tip: String,
+    },
+    /// A joint vector has the wrong length for the chain.
+    #[error("joint vector has {got} values, the chain has {expected} joints")]
+    JointCount {
+        /// Joints in the chain.
+        expected: usize,
+        /// Values passed.
+        got: usize,
+    },
+    /// A joint value that is NaN or infinite.
+    #[error("joint `{0}`: value is not finite")]
+    NonFiniteValue(String),
+}
+
+/// Result alias of the crate.
+pub type Result<T, E = ModelError> = std::result::Result<T, E>;
+
+/// Path of a model file (`loki.urdf`, `spl_field.toml`): `explicit` if given, else the first
+/// `models/<file>` found walking up from the executable's folder, then from the working folder,
+/// else the repository's `models/` as seen from this crate's sources.
+pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
+    if let Some(p) = explicit {
+        return p.to_path_buf();
+    }
+    let starts = [
+        std::env::current_exe()
+            .ok()
+            .and_then(|e| e.parent().map(Path::to_path_buf)),
+        std::env::current_dir().ok(),
+    ];
+    for start in starts.into_iter().flatten() {
+        for dir in start.ancestors() {
+            let p = dir.join("models").join(file);
+            if p.is_file() {
+                return p;
+            }
+        }
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join("models")
+        .join(file)
+}
 
 /// Kind of a URDF joint supported by robocog.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -346,7 +428,7 @@ impl BodyPart {
     /// Looks a body part up by name.
     pub fn find(name: &str) -> Result<&'static BodyPart> {
         BODY_PARTS.iter().find(|b| b.name == name).ok_or_else(|| {
-            DrError::UnknownBodyPart(
+            ModelError::UnknownBodyPart(
                 name.to_string(),
                 BODY_PARTS
                     .iter()
@@ -405,14 +487,14 @@ impl Chain {
 
     fn check(&self, q: &[f64]) -> Result<()> {
         if q.len() != self.joints.len() {
-            return Err(DrError::JointCount {
+            return Err(ModelError::JointCount {
                 expected: self.joints.len(),
                 got: q.len(),
             });
         }
         for (j, v) in self.joints.iter().zip(q) {
             if !v.is_finite() {
-                return Err(DrError::NonFiniteValue(j.name.clone()));
+                return Err(ModelError::NonFiniteValue(j.name.clone()));
             }
         }
         Ok(())
@@ -567,7 +649,7 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
         uncommented.push_str(&rest[..start]);
         match rest[start..].find("-->") {
             Some(end) => rest = &rest[start + end + 3..],
-            None => return Err(DrError::MalformedUrdf("unterminated XML comment".into())),
+            None => return Err(ModelError::MalformedUrdf("unterminated XML comment".into())),
         }
     }
     uncommented.push_str(rest);
@@ -576,7 +658,7 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
     while let Some(start) = rest.find("<robocog_camera") {
         let after = &rest[start + "<robocog_camera".len()..];
         let end = after.find('>').ok_or_else(|| {
-            DrError::MalformedUrdf("unterminated <robocog_camera> element".into())
+            ModelError::MalformedUrdf("unterminated <robocog_camera> element".into())
         })?;
         let body = after[..end].trim_end_matches('/');
         let mut attrs: HashMap<&str, &str> = HashMap::new();
@@ -589,13 +671,13 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
                 .next()
                 .filter(|c| *c == '"' || *c == '\'')
                 .ok_or_else(|| {
-                    DrError::MalformedUrdf(format!(
+                    ModelError::MalformedUrdf(format!(
                         "<robocog_camera>: attribute `{key}` is not quoted"
                     ))
                 })?;
             let v = &v[1..];
             let close = v.find(quote).ok_or_else(|| {
-                DrError::MalformedUrdf(format!(
+                ModelError::MalformedUrdf(format!(
                     "<robocog_camera>: attribute `{key}` is unterminated"
                 ))
             })?;
@@ -604,7 +686,7 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
         }
         let get = |k: &str| {
             attrs.get(k).copied().ok_or_else(|| {
-                DrError::InvalidModel(format!("<robocog_camera> is missing attribute `{k}`"))
+                ModelError::InvalidModel(format!("<robocog_camera> is missing attribute `{k}`"))
             })
         };
         let num = |k: &str| -> Result<f64> {
@@ -614,7 +696,7 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
                 .ok()
                 .filter(|x| x.is_finite())
                 .ok_or_else(|| {
-                    DrError::InvalidModel(format!(
+                    ModelError::InvalidModel(format!(
                         "<robocog_camera> attribute `{k}`=`{v}` is not a number"
                     ))
                 })
@@ -622,7 +704,7 @@ fn parse_cameras(text: &str) -> Result<Vec<CameraIntrinsics>> {
         let int = |k: &str| -> Result<u32> {
             let v = get(k)?;
             v.trim().parse::<u32>().map_err(|_| {
-                DrError::InvalidModel(format!(
+                ModelError::InvalidModel(format!(
                     "<robocog_camera> attribute `{k}`=`{v}` is not a size"
                 ))
             })
@@ -648,7 +730,7 @@ impl RobotModel {
     /// Loads a model from a URDF file.
     pub fn from_urdf_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| DrError::Io {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
             path: path.display().to_string(),
             source,
         })?;
@@ -657,18 +739,18 @@ impl RobotModel {
 
     /// Loads a model from URDF text.
     ///
-    /// Errors: [`DrError::MalformedUrdf`] if urdf-rs cannot parse it, [`DrError::InvalidModel`] if
+    /// Errors: [`ModelError::MalformedUrdf`] if urdf-rs cannot parse it, [`ModelError::InvalidModel`] if
     /// it is not a single tree of known links with supported joints.
     pub fn from_urdf_str(text: &str) -> Result<Self> {
         let robot = urdf_rs::read_from_string(text).map_err(|e| match xml_syntax_error(text) {
-            Some(xml) => DrError::MalformedUrdf(format!("XML error at {xml} ({e})")),
-            None => DrError::MalformedUrdf(e.to_string()),
+            Some(xml) => ModelError::MalformedUrdf(format!("XML error at {xml} ({e})")),
+            None => ModelError::MalformedUrdf(e.to_string()),
         })?;
         let mut links = Vec::with_capacity(robot.links.len());
         let mut link_index = HashMap::new();
         for l in &robot.links {
             if link_index.insert(l.name.clone(), links.len()).is_some() {
-                return Err(DrError::InvalidModel(format!(
+                return Err(ModelError::InvalidModel(format!(
                     "duplicate link `{}`",
                     l.name
                 )));
@@ -687,7 +769,7 @@ impl RobotModel {
             });
         }
         if links.is_empty() {
-            return Err(DrError::InvalidModel("the robot has no links".into()));
+            return Err(ModelError::InvalidModel("the robot has no links".into()));
         }
         let mut joints = Vec::with_capacity(robot.joints.len());
         let mut joint_index = HashMap::new();
@@ -698,7 +780,7 @@ impl RobotModel {
                 urdf_rs::JointType::Prismatic => JointKind::Prismatic,
                 urdf_rs::JointType::Fixed => JointKind::Fixed,
                 ref other => {
-                    return Err(DrError::InvalidModel(format!(
+                    return Err(ModelError::InvalidModel(format!(
                         "joint `{}`: unsupported type {other:?}",
                         j.name
                     )));
@@ -706,7 +788,7 @@ impl RobotModel {
             };
             let find = |name: &str, role: &str| {
                 link_index.get(name).copied().ok_or_else(|| {
-                    DrError::InvalidModel(format!(
+                    ModelError::InvalidModel(format!(
                         "joint `{}`: {role} link `{name}` is not declared",
                         j.name
                     ))
@@ -717,7 +799,7 @@ impl RobotModel {
             let axis_v = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
             let axis = if kind.is_movable() {
                 Unit::try_new(axis_v, 1e-12).ok_or_else(|| {
-                    DrError::InvalidModel(format!("joint `{}`: zero axis", j.name))
+                    ModelError::InvalidModel(format!("joint `{}`: zero axis", j.name))
                 })?
             } else {
                 Vector3::x_axis()
@@ -727,7 +809,7 @@ impl RobotModel {
                     let l = &j.limit;
                     let ordered = l.lower <= l.upper && l.velocity > 0.0;
                     if !ordered {
-                        return Err(DrError::InvalidModel(format!(
+                        return Err(ModelError::InvalidModel(format!(
                             "joint `{}`: limits need lower <= upper and velocity > 0 (got {}..{}, {})",
                             j.name, l.lower, l.upper, l.velocity
                         )));
@@ -757,14 +839,14 @@ impl RobotModel {
                 },
             };
             if links[child].parent_joint.is_some() {
-                return Err(DrError::InvalidModel(format!(
+                return Err(ModelError::InvalidModel(format!(
                     "link `{}` has two parent joints",
                     j.child.link
                 )));
             }
             links[child].parent_joint = Some(joints.len());
             if joint_index.insert(j.name.clone(), joints.len()).is_some() {
-                return Err(DrError::InvalidModel(format!(
+                return Err(ModelError::InvalidModel(format!(
                     "duplicate joint `{}`",
                     j.name
                 )));
@@ -785,12 +867,12 @@ impl RobotModel {
         let root = match roots.as_slice() {
             [r] => *r,
             [] => {
-                return Err(DrError::InvalidModel(
+                return Err(ModelError::InvalidModel(
                     "no root link (the joints form a cycle)".into(),
                 ));
             }
             many => {
-                return Err(DrError::InvalidModel(format!(
+                return Err(ModelError::InvalidModel(format!(
                     "{} root links ({}); a robot must be one tree",
                     many.len(),
                     many.iter()
@@ -808,7 +890,7 @@ impl RobotModel {
                 cur = joints[j].parent;
                 steps += 1;
                 if steps > links.len() {
-                    return Err(DrError::InvalidModel(format!(
+                    return Err(ModelError::InvalidModel(format!(
                         "link `{}` is in a cycle of joints",
                         links[start].name
                     )));
@@ -818,7 +900,7 @@ impl RobotModel {
         let cameras = parse_cameras(text)?;
         for c in &cameras {
             if !link_index.contains_key(&c.frame) {
-                return Err(DrError::InvalidModel(format!(
+                return Err(ModelError::InvalidModel(format!(
                     "camera `{}`: frame `{}` is not a link",
                     c.name, c.frame
                 )));
@@ -845,7 +927,7 @@ impl RobotModel {
         self.link_index
             .get(name)
             .copied()
-            .ok_or_else(|| DrError::UnknownFrame(name.to_string()))
+            .ok_or_else(|| ModelError::UnknownFrame(name.to_string()))
     }
 
     /// A link by name.
@@ -858,7 +940,7 @@ impl RobotModel {
         self.joint_index
             .get(name)
             .map(|i| &self.joints[*i])
-            .ok_or_else(|| DrError::UnknownJoint(name.to_string()))
+            .ok_or_else(|| ModelError::UnknownJoint(name.to_string()))
     }
 
     /// Names of the movable joints, in URDF order.
@@ -877,8 +959,8 @@ impl RobotModel {
 
     /// The chain from link `root` down to link `tip`.
     ///
-    /// Errors: unknown link names ([`DrError::UnknownFrame`]), or `root` not an ancestor of `tip`
-    /// ([`DrError::NotAChain`]). `root == tip` gives an empty chain (identity).
+    /// Errors: unknown link names ([`ModelError::UnknownFrame`]), or `root` not an ancestor of `tip`
+    /// ([`ModelError::NotAChain`]). `root == tip` gives an empty chain (identity).
     pub fn chain(&self, root: &str, tip: &str) -> Result<Chain> {
         let r = self.link_index(root)?;
         let t = self.link_index(tip)?;
@@ -891,7 +973,7 @@ impl RobotModel {
                     cur = self.joints[j].parent;
                 }
                 None => {
-                    return Err(DrError::NotAChain {
+                    return Err(ModelError::NotAChain {
                         root: root.into(),
                         tip: tip.into(),
                     });
@@ -935,8 +1017,11 @@ mod tests {
     use super::*;
 
     fn loki() -> RobotModel {
-        RobotModel::from_urdf_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../models/loki.urdf"))
-            .unwrap()
+        RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap()
     }
 
     #[test]
@@ -1018,38 +1103,38 @@ mod tests {
     fn bad_inputs_give_typed_errors() {
         let m = loki();
         assert!(
-            matches!(m.chain("torso", "no_such_link"), Err(DrError::UnknownFrame(n)) if n == "no_such_link")
+            matches!(m.chain("torso", "no_such_link"), Err(ModelError::UnknownFrame(n)) if n == "no_such_link")
         );
         assert!(matches!(
             m.chain("left_hand", "torso"),
-            Err(DrError::NotAChain { .. })
+            Err(ModelError::NotAChain { .. })
         ));
         assert!(matches!(
             m.joint("left_knee"),
-            Err(DrError::UnknownJoint(_))
+            Err(ModelError::UnknownJoint(_))
         ));
         assert!(matches!(
             m.body_part("tail"),
-            Err(DrError::UnknownBodyPart(..))
+            Err(ModelError::UnknownBodyPart(..))
         ));
         let c = m.body_part("left_arm_4").unwrap();
         assert!(matches!(
             c.fk(&[0.0; 3]),
-            Err(DrError::JointCount {
+            Err(ModelError::JointCount {
                 expected: 4,
                 got: 3
             })
         ));
         assert!(matches!(
             c.fk(&[0.0, f64::NAN, 0.0, 0.0]),
-            Err(DrError::NonFiniteValue(_))
+            Err(ModelError::NonFiniteValue(_))
         ));
     }
 
     #[test]
     fn malformed_and_invalid_urdf_are_rejected() {
         let e = RobotModel::from_urdf_str("<robot name='x'>\n<link name='a'>").unwrap_err();
-        assert!(matches!(e, DrError::MalformedUrdf(_)), "{e}");
+        assert!(matches!(e, ModelError::MalformedUrdf(_)), "{e}");
         assert!(e.to_string().contains("XML error at 2:"), "{e}");
         let e = RobotModel::from_urdf_str("<robot name='x'><link name='a'/></robt>").unwrap_err();
         assert!(e.to_string().contains("XML error at 1:"), "{e}");
@@ -1058,37 +1143,37 @@ mod tests {
             RobotModel::from_urdf_str("<robot name='x'><joint name='j' type='revolute'/></robot>")
                 .unwrap_err();
         assert!(
-            matches!(e, DrError::MalformedUrdf(ref s) if !s.contains("XML error")),
+            matches!(e, ModelError::MalformedUrdf(ref s) if !s.contains("XML error")),
             "{e}"
         );
         let e = RobotModel::from_urdf_str("not xml at all").unwrap_err();
-        assert!(matches!(e, DrError::MalformedUrdf(_)), "{e}");
+        assert!(matches!(e, ModelError::MalformedUrdf(_)), "{e}");
         let dangling = r#"<robot name="x"><link name="a"/>
             <joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>"#;
         let e = RobotModel::from_urdf_str(dangling).unwrap_err();
         assert!(
-            matches!(e, DrError::InvalidModel(ref s) if s.contains("`b`")),
+            matches!(e, ModelError::InvalidModel(ref s) if s.contains("`b`")),
             "{e}"
         );
         let two_roots = r#"<robot name="x"><link name="a"/><link name="b"/></robot>"#;
         assert!(matches!(
             RobotModel::from_urdf_str(two_roots),
-            Err(DrError::InvalidModel(_))
+            Err(ModelError::InvalidModel(_))
         ));
         let bad_limits = r#"<robot name="x"><link name="a"/><link name="b"/>
             <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
             <limit lower="1" upper="-1" velocity="1" effort="1"/></joint></robot>"#;
         assert!(matches!(
             RobotModel::from_urdf_str(bad_limits),
-            Err(DrError::InvalidModel(_))
+            Err(ModelError::InvalidModel(_))
         ));
         let bad_cam = r#"<robot name="x"><link name="a"/>
             <robocog_camera name="c" frame="nowhere" width="640" height="480" fx="1" fy="1" cx="0" cy="0" min_range_m="0" max_range_m="1"/></robot>"#;
         assert!(matches!(
             RobotModel::from_urdf_str(bad_cam),
-            Err(DrError::InvalidModel(_))
+            Err(ModelError::InvalidModel(_))
         ));
         let missing = RobotModel::from_urdf_file("/nonexistent/robot.urdf").unwrap_err();
-        assert!(matches!(missing, DrError::Io { .. }));
+        assert!(matches!(missing, ModelError::Io { .. }));
     }
 }
