@@ -985,3 +985,66 @@ pub async fn run(bus: Bus, config: ServiceConfig, mut shutdown: Shutdown) -> any
     tracing::info!("stopped");
     Ok(())
 }
+
+/// The service's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Flags {
+    /// Keep the state here (snapshot + change log) and recover it on start. Without it the state
+    /// lives in memory only.
+    #[arg(long, env = "ROBOCOG_DR_STATE_DIR")]
+    pub state_dir: Option<PathBuf>,
+    /// Start scene when there is no saved state.
+    #[arg(long, value_enum, default_value_t = Scene::Touch)]
+    pub scene: Scene,
+    /// The robot's URDF (default: models/loki.urdf found above the binary or the working folder).
+    #[arg(long, env = "ROBOCOG_URDF")]
+    pub urdf: Option<PathBuf>,
+    /// The SPL field model (default: models/spl_field.toml, found like the URDF).
+    #[arg(long, env = "ROBOCOG_FIELD")]
+    pub field: Option<PathBuf>,
+    /// Write a fresh snapshot every this many changes.
+    #[arg(long, default_value_t = 1000)]
+    pub compact_every: usize,
+    /// fdatasync the change log after every change (survives a power loss, costs a disk flush).
+    #[arg(long)]
+    pub fsync: bool,
+    /// Follow the measured joints: subscribe body/joint_states (from joint_motor) and apply them
+    /// to the robot's joints, so transforms of the hands and the head camera follow the body.
+    #[arg(long)]
+    pub follow_joint_states: bool,
+}
+
+/// The `deep_representation` component.
+#[derive(Debug)]
+pub struct DeepRepresentation;
+
+impl interfaces::node::Component for DeepRepresentation {
+    const NAME: &'static str = "deep_representation";
+    const ABOUT: &'static str =
+        "The deep representation: robocog's world model, served on the bus.";
+    type Config = Flags;
+    type Prepared = ServiceConfig;
+
+    fn interface(config: &Flags) -> Interface {
+        interface_with(config.follow_joint_states)
+    }
+
+    fn prepare(config: Flags) -> anyhow::Result<ServiceConfig> {
+        Ok(ServiceConfig {
+            state_dir: config.state_dir,
+            scene: config.scene,
+            urdf: find_model(config.urdf.as_deref(), "loki.urdf"),
+            field: find_model(config.field.as_deref(), "spl_field.toml"),
+            store: StoreOptions {
+                compact_every: config.compact_every.max(1),
+                fsync: config.fsync,
+            },
+            follow_joint_states: config.follow_joint_states,
+            ..ServiceConfig::new(config.scene)
+        })
+    }
+
+    async fn run(bus: Bus, prepared: ServiceConfig, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}

@@ -1,6 +1,7 @@
 //! The DR service over a real bus in one process: a zenoh router on a loopback port, the service
 //! and a client, each its own session. Every service, its typed errors, and that a fork leaves the
 //! live graph alone.
+#![allow(clippy::expect_used)] // a test fails by panicking
 
 use std::time::Duration;
 

@@ -732,6 +732,38 @@ async fn run_touch(
     }
 }
 
+/// The `executive` component.
+#[derive(Debug)]
+pub struct Executive;
+
+impl interfaces::node::Component for Executive {
+    const NAME: &'static str = "executive";
+    const ABOUT: &'static str = "The Executive: plays a game's state machine (touch the ball, or the Nao coach \
+        game) between the person's commands, the robot's perception and its body. Prints \
+        a readable game log; `--print-diagram` draws the machine.";
+    type Config = Config;
+    type Prepared = (Config, Settings);
+
+    fn interface(config: &Config) -> Interface {
+        interface(config.game)
+    }
+
+    fn prepare(config: Config) -> anyhow::Result<(Config, Settings)> {
+        let settings = config.load_settings()?;
+        if config.print_diagram || config.print_dot {
+            // A drawing of the machine on stdout, and no bus.
+            print!("{}", diagram(config.game, &settings, config.print_dot)?);
+            std::process::exit(0);
+        }
+        Ok((config, settings))
+    }
+
+    async fn run(bus: Bus, prepared: (Config, Settings), shutdown: Shutdown) -> anyhow::Result<()> {
+        let (config, settings) = prepared;
+        run(bus, config, settings, shutdown).await
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

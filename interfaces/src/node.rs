@@ -1,7 +1,8 @@
 //! The component runtime: what every robocog process does the same way.
 //!
-//! [`run`] parses nothing itself; a component's `main.rs` parses its own flags (flattening
-//! [`NodeArgs`]) and hands over. The runtime then:
+//! A component is a type implementing [`Component`] in its library (its flags, its interface,
+//! its loop); its `main.rs` is one line, [`main`]`::<TheComponent>()`, which parses the flags
+//! (the component's own beside [`NodeArgs`]) and calls [`run`]. The runtime then:
 //! - prints the component's interface as JSON and exits for `--describe` (what `robocog check`
 //!   reads to match inputs with outputs across a graph);
 //! - sets up logging (`RUST_LOG`, default `info`), with the component's name on every line;
@@ -134,6 +135,80 @@ pub fn init_logging_with(default_filter: &str) {
 /// Logging for components: `info`, zenoh's own warnings included.
 pub fn init_logging() {
     init_logging_with("info,zenoh=warn");
+}
+
+/// One robocog component: its flags, what it declares on the bus, and its loop.
+///
+/// The loop lives in the component's library, so a test can run it on a bus of its own without
+/// the binary; `main.rs` is `fn main() -> ExitCode { interfaces::node::main::<C>() }`.
+pub trait Component {
+    /// The component's name: the binary's, and on the bus unless the launcher's `--name` says
+    /// otherwise.
+    const NAME: &'static str;
+    /// What it does, in a line: the first line of `--help`.
+    const ABOUT: &'static str;
+    /// More for `--help`, after the flags (examples, where output goes); empty for none.
+    const AFTER_HELP: &'static str = "";
+    /// Its own flags, parsed beside [`NodeArgs`].
+    type Config: clap::Args + Send + 'static;
+    /// What [`Component::prepare`] makes of the flags (often the flags themselves).
+    type Prepared: Send + 'static;
+    /// The topics and services it publishes, subscribes, serves and calls, and the hardware it
+    /// claims (what `--describe` prints and `robocog check` matches). Never fails: a
+    /// configuration that cannot be used is `prepare`'s or `run`'s error, not `--describe`'s.
+    fn interface(config: &Self::Config) -> Interface;
+    /// Check the flags and do the slow or failing setup (read files, load models) before the
+    /// component joins the bus, so that it is up, for the launcher and its dependents, only
+    /// once it can work. An error here exits 1 with the message, before joining.
+    fn prepare(config: Self::Config) -> anyhow::Result<Self::Prepared>;
+    /// Run until `shutdown` resolves (then return `Ok`) or an error ends the component.
+    fn run(
+        bus: Bus,
+        prepared: Self::Prepared,
+        shutdown: Shutdown,
+    ) -> impl Future<Output = anyhow::Result<()>> + Send;
+}
+
+/// The command line of a [`Component`]: the shared flags and its own.
+#[derive(Debug, clap::Parser)]
+struct Cli<A: clap::Args> {
+    #[command(flatten)]
+    node: NodeArgs,
+    #[command(flatten)]
+    config: A,
+}
+
+/// The whole `main` of a component: parse its flags (`--help` names it and says what it does),
+/// then [`run`] it.
+pub fn main<C: Component>() -> ExitCode {
+    use clap::{CommandFactory, FromArgMatches};
+    let mut command = Cli::<C::Config>::command()
+        .name(C::NAME)
+        .about(C::ABOUT)
+        .version(env!("CARGO_PKG_VERSION"));
+    if !C::AFTER_HELP.is_empty() {
+        command = command.after_help(C::AFTER_HELP);
+    }
+    let matches = command.get_matches();
+    let cli = match Cli::<C::Config>::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    let interface = C::interface(&cli.config);
+    if cli.node.describe {
+        return run(cli.node, interface, |_, _| async { Ok(()) });
+    }
+    init_logging();
+    let prepared = match C::prepare(cli.config) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("{}: {e:#}", C::NAME);
+            return ExitCode::FAILURE;
+        }
+    };
+    run(cli.node, interface, move |bus, shutdown| {
+        C::run(bus, prepared, shutdown)
+    })
 }
 
 /// Run a component: see the module doc. `body` gets the bus and the shutdown signal and returns

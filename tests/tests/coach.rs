@@ -1,4 +1,4 @@
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
 //! The Nao coach game end to end (launch/nao_coach.toml): the simulated SPL field, the bridge,
 //! the Executive's coach machine and the speech stack as separate processes, on real UDP
 //! (loopback) and a fresh namespace, the field time-scaled.

@@ -1,4 +1,4 @@
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
 //! `robocog launch`: order, restarts, stopping, and failures, with real processes.
 
 use robocog_tests::*;

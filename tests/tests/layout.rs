@@ -6,6 +6,7 @@
 //! (normal, dev, build). Libraries depend only on `interfaces`, other libraries and external
 //! crates; `interfaces` on no crate of the workspace. So no process links another's code, and
 //! what two processes share is a library anyone can find in `libs/`.
+#![allow(clippy::expect_used)] // a test fails by panicking
 
 use serde_json::Value;
 use std::collections::BTreeMap;

@@ -227,7 +227,8 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
             stderr_w.lock().unwrap().push(l);
         }
     });
-    let (steps_tx, mut steps) = tokio::sync::mpsc::unbounded_channel::<Step>();
+    // The browser script prints a few dozen steps; the test reads them as they come.
+    let (steps_tx, mut steps) = tokio::sync::mpsc::channel::<Step>(256);
     let stdout_all = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
     let stdout_w = stdout_all.clone();
     tokio::spawn(async move {
@@ -237,10 +238,12 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
                 && let Some((name, json)) = rest.split_once(' ')
             {
                 let data = serde_json::from_str(json).unwrap_or(serde_json::Value::Null);
-                let _ = steps_tx.send(Step {
-                    name: name.to_string(),
-                    data,
-                });
+                let _ = steps_tx
+                    .send(Step {
+                        name: name.to_string(),
+                        data,
+                    })
+                    .await;
             }
         }
     });

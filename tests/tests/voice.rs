@@ -1,4 +1,4 @@
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
 //! The voice chain as processes on the bus: synthesized speech published on `audio/in` reaches
 //! a launched `speech_recognition`, whose utterance goes through `dialogs` to `game/command`;
 //! bad audio is dropped and counted; `speech_generator` speaks a request on `audio/out`.

@@ -427,6 +427,30 @@ async fn track_frames(
     }
 }
 
+/// The `ball_tracker` component.
+#[derive(Debug)]
+pub struct BallTrackerComponent;
+
+impl interfaces::node::Component for BallTrackerComponent {
+    const NAME: &'static str = "ball_tracker";
+    const ABOUT: &'static str = "Tracks a coloured ball in `vision/rgbd`; publishes `vision/ball` and \
+        `vision/ball_events`.";
+    type Config = Config;
+    type Prepared = Config;
+
+    fn interface(config: &Config) -> Interface {
+        interface(config)
+    }
+
+    fn prepare(config: Config) -> anyhow::Result<Config> {
+        Ok(config)
+    }
+
+    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,6 +1,6 @@
 //! The tracker on sequences rendered by the `rgbd` sim: accuracy, motion, leaving the view,
 //! decoys, garbage input.
-
+#![allow(clippy::expect_used)] // a test fails by panicking
 #![allow(clippy::unwrap_used)] // tests may unwrap (helpers outside #[test] included)
 
 use ball_tracker::hsv::rgb_to_hsv;

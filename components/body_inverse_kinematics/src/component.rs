@@ -849,6 +849,35 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     Ok(())
 }
 
+/// The `body_inverse_kinematics` component.
+#[derive(Debug)]
+pub struct BodyInverseKinematics;
+
+impl interfaces::node::Component for BodyInverseKinematics {
+    const NAME: &'static str = "body_inverse_kinematics";
+    const ABOUT: &'static str = "Reach and gaze for Loki's body parts: takes goals on body/reach (a DR frame and \
+        a point in it, for a named chain such as left_arm_7 or neck), solves them with \
+        Levenberg-Marquardt IK from the measured joints (body/joint_states), drives \
+        joint_motor along a smooth trajectory (body/joint_goal) and reports Moving, \
+        Reached, Unreachable, Cancelled or Failed on body/reach_status. `follow` goals \
+        track a moving DR frame (the ball).";
+    type Config = Config;
+    type Prepared = Config;
+
+    fn interface(config: &Config) -> Interface {
+        let _ = config;
+        interface()
+    }
+
+    fn prepare(config: Config) -> anyhow::Result<Config> {
+        Ok(config)
+    }
+
+    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

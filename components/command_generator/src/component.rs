@@ -12,6 +12,7 @@ use crate::panel::Outgoing;
 use crate::server::{Hub, router};
 use interfaces::msg::Message;
 use interfaces::msg::nao::CoachRequest;
+use interfaces::node::Interface;
 use interfaces::{Bus, Shutdown, Subscriber, Topic, topics};
 use serde::Serialize;
 use serde_json::json;
@@ -289,4 +290,80 @@ async fn publish_task(bus: Bus, mut commands: mpsc::Receiver<Outgoing>) -> anyho
         }
     }
     Ok(())
+}
+
+/// The component's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Flags {
+    /// Address and port of the panel's HTTP server (port 0: any free port, printed at start).
+    /// (`--listen` is the bus's own flag.)
+    #[arg(long, default_value = "127.0.0.1:8642")]
+    pub http: SocketAddr,
+    /// Allow a non-loopback --http address (needs --token).
+    #[arg(long)]
+    pub allow_remote: bool,
+    /// Access token the page must present (`/?token=...`); required with --allow-remote.
+    #[arg(long, env = "ROBOCOG_PANEL_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// Camera images per second sent to each page (the camera itself runs at 30 Hz).
+    #[arg(long, default_value_t = 4.0)]
+    pub camera_hz: f64,
+}
+
+/// The `command_generator` component.
+#[derive(Debug)]
+pub struct CommandGenerator;
+
+impl interfaces::node::Component for CommandGenerator {
+    const NAME: &'static str = "command_generator";
+    const ABOUT: &'static str = "The command panel: a web page with the games' buttons, the Nao coach's field and \
+        the robot's answers. Open the printed address in a browser. Commands go on \
+        `coach/request` (the Executive's coach machine checks them and commands the \
+        robot), `game/command` and `game/answer`, checked first; refusals are shown on \
+        the page and counted on `diagnostics` (`rejected/<reason>`).  By default only \
+        this machine can open it (127.0.0.1). To serve another machine, bind its address \
+        with --http, add --allow-remote, and give a --token (or ROBOCOG_PANEL_TOKEN), \
+        then open http://<address>/?token=<token>.";
+    type Config = Flags;
+    type Prepared = Config;
+
+    fn interface(config: &Flags) -> Interface {
+        Interface {
+            hardware: vec![format!("http:{}", config.http)],
+            ..Interface::new("command_generator")
+                .publishes(&topics::COACH_REQUEST)
+                .publishes(&topics::GAME_COMMAND)
+                .publishes(&topics::GAME_ANSWER)
+                .subscribes(&topics::NAO_WORLD_MODEL)
+                .subscribes(&topics::NAO_LOCAL_MODEL)
+                .subscribes(&topics::NAO_GAME_STATE)
+                .subscribes(&topics::NAO_LINK)
+                .subscribes(&topics::VISION_RGBD)
+                .subscribes(&topics::VISION_BALL)
+                .subscribes(&topics::VISION_BALL_EVENTS)
+                .subscribes(&topics::SPEECH_SAY)
+                .subscribes(&topics::SPEECH_SPEAKING)
+                .subscribes(&topics::SPEECH_UTTERANCE)
+                .subscribes(&topics::GAME_COMMAND)
+                .subscribes(&topics::EXECUTIVE_TRANSITIONS)
+                .subscribes(&topics::EXECUTIVE_LOG)
+                .subscribes(&topics::COACH_STATUS)
+        }
+    }
+
+    fn prepare(config: Flags) -> anyhow::Result<Config> {
+        crate::check_listen(config.http, config.allow_remote, config.token.as_deref())?;
+        if !(config.camera_hz > 0.0 && config.camera_hz <= 30.0) {
+            anyhow::bail!("--camera-hz must be in (0, 30]");
+        }
+        Ok(Config {
+            listen: config.http,
+            token: config.token.filter(|t| !t.is_empty()),
+            camera_hz: config.camera_hz,
+        })
+    }
+
+    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
 }

@@ -349,6 +349,34 @@ pub fn handle_goal(
     }
 }
 
+/// The `joint_motor` component.
+#[derive(Debug)]
+pub struct JointMotorComponent;
+
+impl interfaces::node::Component for JointMotorComponent {
+    const NAME: &'static str = "joint_motor";
+    const ABOUT: &'static str = "Loki's joints on the bus: publishes body/joint_states at --rate-hz (every \
+        joint's position, velocity and owner) and serves body/joint_goal (position or \
+        velocity goals, refused with the joint, the limit and the owner when they break \
+        a limit or another client owns the joint). Drivers: `sim` (no hardware) or \
+        `dynamixel` (Protocol 2.0 servos on a serial port).";
+    type Config = Config;
+    type Prepared = Config;
+
+    fn interface(config: &Config) -> Interface {
+        let _ = config;
+        interface()
+    }
+
+    fn prepare(config: Config) -> anyhow::Result<Config> {
+        Ok(config)
+    }
+
+    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,6 +17,7 @@
 use crate::bus as convert;
 use crate::{ExpectedRobot, Inbound, InboundConfig};
 use interfaces::msg::nao::{GameState, NaoWorldModel};
+use interfaces::node::Interface;
 use interfaces::{Bus, Shutdown, topics};
 use spl::{FusionConfig, PacketKind, WorldModelFusion, encode_command};
 use std::net::{IpAddr, SocketAddr};
@@ -353,5 +354,97 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 }
             }
         }
+    }
+}
+
+/// The component's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Flags {
+    /// Address of the controlled robot (player 2), which receives the commands.
+    #[arg(long, default_value = "127.0.0.2")]
+    pub robot: IpAddr,
+    /// Address of the autonomous teammate (player 1), whose debug packets are also accepted.
+    #[arg(long)]
+    pub teammate: Option<IpAddr>,
+    /// The robot's command port.
+    #[arg(long, default_value_t = spl::COMMAND_PORT)]
+    pub command_port: u16,
+    /// Address to listen on for debug and GameController packets (UDP).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub udp_listen: IpAddr,
+    /// Port of the robots' debug packets.
+    #[arg(long, default_value_t = spl::DEBUG_PORT)]
+    pub debug_port: u16,
+    /// Port of the GameController's packets.
+    #[arg(long, default_value_t = spl::GAMECONTROLLER_PORT)]
+    pub gamecontroller_port: u16,
+    /// Our team number (finds our block in the GameController packet).
+    #[arg(long, default_value_t = 19)]
+    pub team_number: u8,
+    /// No packet from a robot for this long: "robot not responding" (s).
+    #[arg(long, default_value_t = 1.0)]
+    pub link_timeout_s: f64,
+    /// Mirror the team model (our robots, the ball, the obstacles) and the game state into the
+    /// deep representation's coach scene with `dr/update` (needs `deep_representation --scene
+    /// coach`). Obstacles come and go, so their nodes are added and removed by structural
+    /// proposals (see --dr-propose-via).
+    #[arg(long)]
+    pub dr_updates: bool,
+    /// Where the obstacle nodes' structural proposals go with --dr-updates: `executive` (checked
+    /// against the game by the Executive first, as every structural change should be) or `dr`
+    /// (straight to the DR, for graphs without an Executive).
+    #[arg(long, value_enum, default_value_t = ProposeVia::Executive)]
+    pub dr_propose_via: ProposeVia,
+}
+
+/// The `nao_bridge` component.
+#[derive(Debug)]
+pub struct NaoBridge;
+
+impl interfaces::node::Component for NaoBridge {
+    const NAME: &'static str = "nao_bridge";
+    const ABOUT: &'static str = "The operator-side end of the Nao coach link: commands out on UDP, the robots' \
+        world models and the GameController's state in, all on the bus.";
+    type Config = Flags;
+    type Prepared = Config;
+
+    fn interface(config: &Flags) -> Interface {
+        let mut base = Interface::new("nao_bridge")
+            .subscribes(&topics::NAO_COMMAND)
+            .publishes(&topics::NAO_LOCAL_MODEL)
+            .publishes(&topics::NAO_WORLD_MODEL)
+            .publishes(&topics::NAO_GAME_STATE)
+            .publishes(&topics::NAO_LINK);
+        if config.dr_updates {
+            base = base
+                .calls(&topics::DR_UPDATE)
+                .calls(config.dr_propose_via.service());
+        }
+        Interface {
+            hardware: vec![
+                format!("udp:{}", config.debug_port),
+                format!("udp:{}", config.gamecontroller_port),
+            ],
+            ..base
+        }
+    }
+
+    fn prepare(config: Flags) -> anyhow::Result<Config> {
+        Ok(Config {
+            controlled: config.robot,
+            teammate: config.teammate,
+            command_port: config.command_port,
+            listen: config.udp_listen,
+            debug_port: config.debug_port,
+            gamecontroller_port: config.gamecontroller_port,
+            team_number: config.team_number,
+            link_timeout_s: config.link_timeout_s,
+            dr_updates: config.dr_updates,
+            propose_via: config.dr_propose_via,
+        })
+    }
+
+    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
     }
 }

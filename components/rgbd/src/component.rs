@@ -872,3 +872,30 @@ impl StatusOut {
         self.change(streaming, detail).await
     }
 }
+
+/// The `rgbd` component.
+#[derive(Debug)]
+pub struct Rgbd;
+
+impl interfaces::node::Component for Rgbd {
+    const NAME: &'static str = "rgbd";
+    const ABOUT: &'static str = "The head RGB-D camera: publishes `vision/rgbd` from the `sim`, `playback` or \
+        `freenect` driver.";
+    type Config = Config;
+    type Prepared = (Config, Source);
+
+    fn interface(config: &Config) -> Interface {
+        interface(config)
+    }
+
+    fn prepare(config: Config) -> anyhow::Result<(Config, Source)> {
+        // Open the driver before joining the bus: a bad recording is reported at once.
+        let source = Source::open(&config)?;
+        Ok((config, source))
+    }
+
+    async fn run(bus: Bus, prepared: (Config, Source), shutdown: Shutdown) -> anyhow::Result<()> {
+        let (config, source) = prepared;
+        run(bus, config, source, shutdown).await
+    }
+}

@@ -10,7 +10,7 @@
 //! transcription is mapped to a command of the catalog (`interfaces::msg::command`), or marked
 //! out of grammar when the confidence is under the rejection threshold.
 //!
-//! The component (`src/main.rs`) reads `audio/in` (or `--wav FILE`) and publishes
+//! The component ([`component`]) reads `audio/in` (or `--wav FILE`) and publishes
 //! `speech/utterance`.
 //!
 //! The decoder runs with wider beams and without its own voice detection (`--noise-robust`, on
@@ -21,6 +21,7 @@
 //! A second program, `speech_model` (`src/bin/`), builds the adapted acoustic model.
 
 pub mod adapt;
+pub mod component;
 pub mod confidence;
 pub mod denoise;
 pub mod garbage;

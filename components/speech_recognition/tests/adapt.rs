@@ -1,4 +1,4 @@
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
 //! `speech_model`: adapting the acoustic model on a folder of recordings, and what bad
 //! recordings get. The synthesized corpus is built by `scripts/test` itself (it is the model the
 //! other tests use); these tests use small corpora so they run in seconds.

@@ -1,4 +1,4 @@
-#![allow(dead_code)]
+#![allow(dead_code, clippy::expect_used)] // test support: a panic is how a test fails
 //! Test audio: commands spoken by espeak-ng in several voices, speeds and pitches, mixed with
 //! noise at a chosen SNR.
 

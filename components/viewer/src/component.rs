@@ -448,3 +448,105 @@ async fn fetch_dr_snapshots(bus: interfaces::Bus, intake: Arc<Intake>, wants: Ar
         }
     }
 }
+
+/// `--help`'s text after the flags.
+const AFTER_HELP: &str = "\
+Where the data goes (one of):\n\
+\x20 --spawn                 start a rerun viewer (the `rerun` executable on PATH, from\n\
+\x20                         `pip install rerun-sdk==0.36.3`) and stream to it; the default\n\
+\x20 --connect-viewer URL    stream to a running viewer's gRPC endpoint, e.g.\n\
+\x20                         rerun+http://127.0.0.1:9876/proxy (start it with `rerun`)\n\
+\x20 --save FILE.rrd         write a recording; open it later with `rerun FILE.rrd`\n\
+\n\
+Every topic of the namespace is picked up as it appears (or only --topics). Samples are\n\
+decoded by their type name; unknown types and undecodable payloads are listed once, counted\n\
+(view_unknown/<topic>, view_undecodable/<topic>) and skipped. A viewer slower than the robot\n\
+makes this component drop samples (view_dropped/<topic>, also drawn under stats/), never the\n\
+publishers wait. Camera frames are thinned to --image-hz.\n\
+\n\
+Examples:\n\
+\x20 robocog view                                    # spawn a viewer, every topic\n\
+\x20 robocog view --save game.rrd --game touch\n\
+\x20 robocog view --connect-viewer rerun+http://10.0.0.5:9876/proxy --exclude audio/in";
+
+/// The viewer's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Flags {
+    /// Start a rerun viewer and stream to it (the default when neither --save nor
+    /// --connect-viewer is given).
+    #[arg(long, conflicts_with_all = ["save", "connect_viewer"])]
+    pub spawn: bool,
+    /// Stream to a running rerun viewer at this gRPC URL (rerun+http://HOST:PORT/proxy).
+    #[arg(long, value_name = "URL", conflicts_with = "save")]
+    pub connect_viewer: Option<String>,
+    /// Write everything to this .rrd file instead (finished on SIGTERM or Ctrl-C).
+    #[arg(long, value_name = "FILE")]
+    pub save: Option<PathBuf>,
+    /// Only these topics (comma-separated). Default: every topic of the namespace.
+    #[arg(long, value_delimiter = ',', value_name = "TOPIC,...")]
+    pub topics: Vec<String>,
+    /// Leave these topics out (comma-separated).
+    #[arg(long, value_delimiter = ',', value_name = "TOPIC,...")]
+    pub exclude: Vec<String>,
+    /// The layout of the views. Default: chosen from the topics present (Nao topics: coach;
+    /// camera, body or ball topics: touch); rerun's automatic layout until one is seen.
+    #[arg(long, value_enum)]
+    pub game: Option<Game>,
+    /// The robot's URDF (default: models/loki.urdf found beside the binaries or the current
+    /// folder). Joint states and camera frames are drawn on it.
+    #[arg(long, value_name = "FILE")]
+    pub urdf: Option<PathBuf>,
+    /// The SPL field model (default: models/spl_field.toml), for the coach game's field lines.
+    #[arg(long, value_name = "FILE")]
+    pub field: Option<PathBuf>,
+    /// At most this many camera frames per second go to rerun (0: all of them; a 640x480 RGB-D
+    /// frame is about 1.5 MB).
+    #[arg(long, default_value_t = 10.0, value_name = "HZ")]
+    pub image_hz: f64,
+    /// At most this many samples wait for rerun; more are dropped (and counted).
+    #[arg(long, default_value_t = 256, value_name = "N")]
+    pub queue: usize,
+    /// At most this many of them from one topic.
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    pub queue_per_topic: usize,
+}
+
+/// The `viewer` component.
+#[derive(Debug)]
+pub struct Viewer;
+
+impl interfaces::node::Component for Viewer {
+    const NAME: &'static str = "viewer";
+    const ABOUT: &'static str = "Logs the live topics of a robocog namespace to rerun.";
+    const AFTER_HELP: &'static str = AFTER_HELP;
+    type Config = Flags;
+    type Prepared = Settings;
+
+    fn interface(config: &Flags) -> Interface {
+        let _ = config;
+        interface()
+    }
+
+    fn prepare(config: Flags) -> anyhow::Result<Settings> {
+        let sink = match (&config.save, &config.connect_viewer) {
+            (Some(p), _) => Sink::Save(p.clone()),
+            (None, Some(u)) => Sink::Connect(u.clone()),
+            (None, None) => Sink::Spawn,
+        };
+        Ok(Settings {
+            sink,
+            topics: config.topics,
+            exclude: config.exclude,
+            game: config.game,
+            urdf: config.urdf,
+            field: config.field,
+            image_hz: config.image_hz,
+            queue: config.queue,
+            queue_per_topic: config.queue_per_topic,
+        })
+    }
+
+    async fn run(bus: Bus, prepared: Settings, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}

@@ -187,23 +187,26 @@ fn frames_of_a_dump_folder_come_through_fakenect() {
 fn a_live_dump_streams_through_fakenect_and_a_new_stream_is_read_after_a_reload() {
     let dir = scratch("live");
     let writer_dir = dir.clone();
-    let writer = std::thread::spawn(move || {
-        for round in 0..2u8 {
-            let mut live = LiveDump::create(&writer_dir).unwrap();
-            let (mut rgb, raw) = frame(0);
-            rgb[0] = 100 + round;
-            let deadline = Instant::now() + Duration::from_secs(30);
-            let mut sent = 0;
-            while sent < 20 && Instant::now() < deadline {
-                if live.offer(sent, &rgb, &raw, None).unwrap() == Offer::Sent {
-                    sent += 1;
+    let writer = std::thread::Builder::new()
+        .name("live-dump-writer".into())
+        .spawn(move || {
+            for round in 0..2u8 {
+                let mut live = LiveDump::create(&writer_dir).unwrap();
+                let (mut rgb, raw) = frame(0);
+                rgb[0] = 100 + round;
+                let deadline = Instant::now() + Duration::from_secs(30);
+                let mut sent = 0;
+                while sent < 20 && Instant::now() < deadline {
+                    if live.offer(sent, &rgb, &raw, None).unwrap() == Offer::Sent {
+                        sent += 1;
+                    }
+                    std::thread::sleep(Duration::from_millis(10));
                 }
-                std::thread::sleep(Duration::from_millis(10));
+                assert_eq!(sent, 20, "round {round}: the reader took {sent} frames");
+                // Dropping the dump closes the FIFO: the reader sees the stream end.
             }
-            assert_eq!(sent, 20, "round {round}: the reader took {sent} frames");
-            // Dropping the dump closes the FIFO: the reader sees the stream end.
-        }
-    });
+        })
+        .unwrap();
     let out = child("live", &dir);
     writer.join().unwrap();
     assert!(out.contains("stream 1 ok"), "{out}");

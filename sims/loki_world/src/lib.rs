@@ -12,5 +12,6 @@
 //! seconds.
 
 pub mod ball;
+pub mod component;
 pub mod person;
 pub mod scenario;

@@ -17,6 +17,7 @@
 use crate::sim::SplField;
 use crate::types::{Datagram, RobotId, SimConfig, SimEvent};
 use interfaces::msg::nao::{FieldPoint, FieldPose, FieldTruth};
+use interfaces::node::Interface;
 use interfaces::{Bus, Shutdown, topics};
 use std::net::{IpAddr, SocketAddr};
 use std::time::Duration;
@@ -150,5 +151,108 @@ pub async fn run(
                 }
             }
         }
+    }
+}
+
+/// The component's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Flags {
+    /// The operator PC (where the bridge listens).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub operator: IpAddr,
+    /// The bridge's debug port.
+    #[arg(long, default_value_t = 65305)]
+    pub debug_port: u16,
+    /// The bridge's GameController port.
+    #[arg(long, default_value_t = 3838)]
+    pub gamecontroller_port: u16,
+    /// Address of the simulated controlled robot (player 2).
+    #[arg(long, default_value = "127.0.0.2")]
+    pub controlled: IpAddr,
+    /// Address of the simulated autonomous teammate (player 1).
+    #[arg(long, default_value = "127.0.0.3")]
+    pub teammate: IpAddr,
+    /// The controlled robot's command port.
+    #[arg(long, default_value_t = 65306)]
+    pub command_port: u16,
+    /// Random seed (falls, perception noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated seconds per real second.
+    #[arg(long, default_value_t = 1.0)]
+    pub time_scale: f64,
+    /// Seconds in INITIAL, READY and SET before the 90 s attack starts.
+    #[arg(long)]
+    pub pre_game_s: Option<f64>,
+    /// Falls per minute per robot (0: never).
+    #[arg(long)]
+    pub falls_per_min: Option<f64>,
+    /// Whether the two opponents stand still in PLAYING (obstacles only; scripted scenarios).
+    #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
+    pub passive_opponents: bool,
+    /// Penalise the controlled robot this many simulated seconds into PLAYING (scripted
+    /// scenarios): the GameController reports it, the robot stands out of play.
+    #[arg(long)]
+    pub penalty_at_s: Option<f64>,
+    /// Length of that penalty (simulated s).
+    #[arg(long, default_value_t = 45.0)]
+    pub penalty_s: f64,
+}
+
+/// The `spl_field` component.
+#[derive(Debug)]
+pub struct SplFieldComponent;
+
+impl interfaces::node::Component for SplFieldComponent {
+    const NAME: &'static str = "spl_field";
+    const ABOUT: &'static str = "A simulated RoboCup SPL field for the coach game: two robots of ours (one \
+        controlled, one autonomous), two opponents, a ball and a GameController, \
+        speaking the real UDP protocols.";
+    type Config = Flags;
+    type Prepared = (NetConfig, SimConfig);
+
+    fn interface(config: &Flags) -> Interface {
+        Interface {
+            hardware: vec![format!("udp:{}:{}", config.controlled, config.command_port)],
+            ..Interface::new("spl_field").publishes(&topics::SIM_FIELD_TRUTH)
+        }
+    }
+
+    fn prepare(config: Flags) -> anyhow::Result<(NetConfig, SimConfig)> {
+        let mut sim = SimConfig {
+            seed: config.seed,
+            ..SimConfig::default()
+        };
+        if let Some(p) = config.pre_game_s {
+            let p = p.max(0.0) / 3.0;
+            (sim.initial_s, sim.ready_s, sim.set_s) = (p, p, p);
+        }
+        if let Some(f) = config.falls_per_min {
+            sim.falls_per_min = f.max(0.0);
+        }
+        sim.penalty_at_s = config.penalty_at_s.filter(|s| s.is_finite() && *s >= 0.0);
+        sim.penalty_s = config.penalty_s.max(0.0);
+        if config.passive_opponents {
+            sim.passive_robots = vec![RobotId::KEEPER, RobotId::DEFENDER];
+        }
+        let net = NetConfig {
+            operator: config.operator,
+            debug_port: config.debug_port,
+            gamecontroller_port: config.gamecontroller_port,
+            controlled: config.controlled,
+            teammate: config.teammate,
+            command_port: config.command_port,
+            time_scale: config.time_scale.max(0.01),
+        };
+        Ok((net, sim))
+    }
+
+    async fn run(
+        bus: Bus,
+        prepared: (NetConfig, SimConfig),
+        shutdown: Shutdown,
+    ) -> anyhow::Result<()> {
+        let (net, sim) = prepared;
+        run(bus, net, sim, shutdown).await
     }
 }

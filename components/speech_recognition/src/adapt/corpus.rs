@@ -1,0 +1,188 @@
+//! The adaptation corpus on disk (`wav/ID.wav`, `adapt.fileids`, `adapt.transcription`, its
+//! dictionary): synthesized from the command catalog and sentences, or taken from recordings.
+
+use super::*;
+
+/// A corpus being written: `wav/ID.wav`, `adapt.fileids`, `adapt.transcription`.
+pub(super) struct CorpusWriter {
+    pub(super) dir: PathBuf,
+    pub(super) ids: String,
+    pub(super) transcription: String,
+    pub(super) words: Vec<(String, String)>,
+    pub(super) n: usize,
+    pub(super) samples: usize,
+}
+
+impl CorpusWriter {
+    pub(super) fn new(dir: &Path) -> Result<Self, AdaptError> {
+        std::fs::create_dir_all(dir.join("wav")).map_err(|e| file_err(dir, e))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            ids: String::new(),
+            transcription: String::new(),
+            words: Vec::new(),
+            n: 0,
+            samples: 0,
+        })
+    }
+
+    /// Add one utterance (16 kHz mono); `source` names it in errors.
+    pub(super) fn add(
+        &mut self,
+        words: &str,
+        samples: Vec<i16>,
+        source: &str,
+    ) -> Result<(), AdaptError> {
+        let id = format!("u{:05}", self.n);
+        let path = self.dir.join("wav").join(format!("{id}.wav"));
+        self.samples += samples.len();
+        let pcm = audio::wav::Pcm {
+            sample_rate_hz: crate::vad::RATE_HZ,
+            channels: 1,
+            samples,
+        };
+        std::fs::write(&path, audio::wav::encode(&pcm)).map_err(|e| file_err(&path, e))?;
+        let _ = writeln!(self.ids, "{id}");
+        let _ = writeln!(self.transcription, "<s> {words} </s> ({id})");
+        self.words.push((words.to_string(), source.to_string()));
+        self.n += 1;
+        Ok(())
+    }
+
+    pub(super) fn finish(&self) -> Result<(), AdaptError> {
+        for (name, text) in [
+            ("adapt.fileids", &self.ids),
+            ("adapt.transcription", &self.transcription),
+        ] {
+            let p = self.dir.join(name);
+            std::fs::write(&p, text).map_err(|e| file_err(&p, e))?;
+        }
+        Ok(())
+    }
+}
+
+pub(super) fn synthesize_corpus(
+    w: &mut CorpusWriter,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(), AdaptError> {
+    let sentences: Vec<&str> = SENTENCES
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect();
+    let phrases = command_phrases();
+    let mut texts: Vec<&str> = Vec::new();
+    for p in &phrases {
+        texts.extend(std::iter::repeat_n(*p, COMMAND_REPEATS));
+    }
+    texts.extend(&sentences);
+    let total = VOICES.len() * texts.len();
+    let mut rng = NoiseRng::new(SEED);
+    for v in VOICES {
+        for t in &texts {
+            let voice = Voice {
+                voice: v.into(),
+                speed_wpm: 120 + (rng.uniform() * 110.0) as u32,
+                pitch: 30 + (rng.uniform() * 30.0) as u8,
+            };
+            let speech = synthesize_16k(t, &voice)?;
+            let (snr, kind) =
+                CONDITIONS[(rng.uniform() * CONDITIONS.len() as f64) as usize % CONDITIONS.len()];
+            let audio = mix_at_snr(&speech, snr, kind, 0.3, 0.3, &mut rng);
+            w.add(&normalize_words(t), audio, &format!("{v}: {t:?}"))?;
+            if w.n.is_multiple_of(200) || w.n == total {
+                progress(Progress::Corpus { done: w.n, total });
+            }
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn recordings_corpus(
+    dir: &Path,
+    w: &mut CorpusWriter,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(), AdaptError> {
+    let rec_err = |message: String| AdaptError::Recordings {
+        dir: dir.to_path_buf(),
+        message,
+    };
+    let mut wavs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| rec_err(e.to_string()))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("wav")))
+        .collect();
+    wavs.sort();
+    if wavs.is_empty() {
+        return Err(rec_err("no .wav files".into()));
+    }
+    let total = wavs.len();
+    for wav in wavs {
+        let txt = wav.with_extension("txt");
+        let text = std::fs::read_to_string(&txt).map_err(|e| {
+            rec_err(format!(
+                "{} has no transcription {} ({e})",
+                wav.display(),
+                txt.display()
+            ))
+        })?;
+        let words = normalize_words(&text);
+        if words.is_empty() {
+            return Err(rec_err(format!("{} is empty", txt.display())));
+        }
+        let bytes = std::fs::read(&wav).map_err(|e| file_err(&wav, e))?;
+        let pcm = audio::wav::parse(&bytes).map_err(|e| file_err(&wav, e))?;
+        let samples = resample(&pcm.to_mono(), pcm.sample_rate_hz, crate::vad::RATE_HZ);
+        if samples.len() < crate::vad::RATE_HZ as usize / 5 {
+            return Err(rec_err(format!("{} is shorter than 0.2 s", wav.display())));
+        }
+        w.add(&words, samples, &wav.display().to_string())?;
+        if w.n.is_multiple_of(50) || w.n == total {
+            progress(Progress::Corpus { done: w.n, total });
+        }
+    }
+    Ok(())
+}
+
+/// The dictionary of the corpus' words (every pronunciation), or which words it lacks.
+pub(super) fn corpus_dictionary(
+    w: &CorpusWriter,
+    dict_path: &Path,
+    out: &Path,
+) -> Result<(), AdaptError> {
+    let dict = Dictionary::load(dict_path).map_err(|e| file_err(dict_path, e))?;
+    let mut words: Vec<&str> = w.words.iter().flat_map(|(t, _)| t.split(' ')).collect();
+    words.sort_unstable();
+    words.dedup();
+    let unknown: Vec<&str> = words
+        .iter()
+        .copied()
+        .filter(|x| !dict.contains(x))
+        .collect();
+    if !unknown.is_empty() {
+        let examples: Vec<&str> = w
+            .words
+            .iter()
+            .filter(|(t, _)| t.split(' ').any(|x| unknown.contains(&x)))
+            .take(3)
+            .map(|(_, s)| s.as_str())
+            .collect();
+        return Err(AdaptError::UnknownWords {
+            dict: dict_path.to_path_buf(),
+            words: unknown.join(", "),
+            examples: examples.join("; "),
+        });
+    }
+    let mut text = String::new();
+    for word in words {
+        for (i, pron) in dict.pronunciations(word).iter().enumerate() {
+            if i == 0 {
+                let _ = writeln!(text, "{word} {pron}");
+            } else {
+                let _ = writeln!(text, "{word}({}) {pron}", i + 1);
+            }
+        }
+    }
+    std::fs::write(out, text).map_err(|e| file_err(out, e))
+}

@@ -1,0 +1,277 @@
+//! The speech recognition component: 16 kHz mono audio in (`audio/in`, or `--wav FILE`),
+//! `speech/utterance` out. See the crate doc.
+//!
+//! Every utterance is also printed on stdout as one line `utterance {json}`.
+
+use crate::confidence::ConfidenceConfig;
+use crate::model::{AcousticModel, adapted_model_dir};
+use crate::vad::{RATE_HZ, VadConfig};
+use crate::{Recognized, Recognizer, RecognizerConfig};
+use interfaces::msg::command::Game;
+use interfaces::msg::speech::Utterance;
+use interfaces::node::{Component, Interface};
+use interfaces::{Bus, Shutdown, topics};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Audio chunks (100 ms each from the simulated person and the tests) that may wait for the
+/// decoder: 10 s.
+pub const DECODER_BACKLOG: usize = 100;
+
+/// The recognizer's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// Which game's commands to listen for (`touch` or `coach`).
+    #[arg(long, default_value = "touch")]
+    pub game: String,
+    /// JSGF grammar file (default: the shipped `grammars/<game>.gram`).
+    #[arg(long)]
+    pub grammar: Option<PathBuf>,
+    /// Decode this WAV file (16-bit PCM; other rates are resampled to 16 kHz, channels mixed),
+    /// publish its utterances, and exit.
+    #[arg(long)]
+    pub wav: Option<PathBuf>,
+    /// End-pointer: dB above the noise floor that starts speech.
+    #[arg(long, default_value_t = VadConfig::default().start_db)]
+    pub start_db: f64,
+    /// End-pointer: silence that ends an utterance (s).
+    #[arg(long, default_value_t = VadConfig::default().hangover_s)]
+    pub hangover_s: f64,
+    /// Confidence: acoustic scale of the N-best softmax (smaller spreads the confidence over
+    /// competing sentences; see the library's `confidence` module).
+    #[arg(long, default_value_t = ConfidenceConfig::default().acoustic_scale)]
+    pub confidence_scale: f64,
+    /// Confidence: garbage penalty in nats per 10 ms frame (larger favours the commands).
+    #[arg(long, default_value_t = ConfidenceConfig::default().garbage_penalty)]
+    pub garbage_penalty: f64,
+    /// Noise settings for the decoder: wider beams, no PocketSphinx voice detection (the
+    /// end-pointer's cut is decoded whole). `--noise-robust false` for PocketSphinx's defaults.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub noise_robust: bool,
+    /// Remove background noise before decoding (Wiener filter, noise taken from the quiet
+    /// before each utterance). Off by default: the acoustic model is not adapted to its output.
+    #[arg(long)]
+    pub denoise: bool,
+    /// Acoustic model: a PocketSphinx model folder, or `stock` (Debian's en-us). Default:
+    /// `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model built by `speech_model` when there is
+    /// one, else the stock model.
+    #[arg(long, value_name = "DIR|stock")]
+    pub acoustic_model: Option<String>,
+    /// Filler words of the garbage model that catches out-of-grammar speech, one per line
+    /// (default: the shipped `grammars/filler.words`).
+    #[arg(long)]
+    pub fillers: Option<PathBuf>,
+}
+
+/// The `speech_recognition` component.
+#[derive(Debug)]
+pub struct SpeechRecognition;
+
+/// A loaded recognizer, and the file to decode instead of `audio/in` if any.
+pub struct Prepared {
+    pub recognizer: Recognizer,
+    pub wav: Option<PathBuf>,
+}
+
+impl Component for SpeechRecognition {
+    const NAME: &'static str = "speech_recognition";
+    const ABOUT: &'static str = "Grammar-constrained speech recognition (PocketSphinx).";
+    type Config = Config;
+    type Prepared = Prepared;
+
+    fn interface(_: &Config) -> Interface {
+        Interface::new(Self::NAME)
+            .subscribes(&topics::AUDIO_IN)
+            .publishes(&topics::SPEECH_UTTERANCE)
+    }
+
+    /// Load the grammar and the acoustic model (seconds) before joining the bus.
+    fn prepare(config: Config) -> anyhow::Result<Prepared> {
+        Ok(Prepared {
+            recognizer: recognizer(&config)?,
+            wav: config.wav,
+        })
+    }
+
+    async fn run(bus: Bus, prepared: Prepared, shutdown: Shutdown) -> anyhow::Result<()> {
+        run(bus, prepared, shutdown).await
+    }
+}
+
+/// The recognizer the flags describe.
+pub fn recognizer(config: &Config) -> anyhow::Result<Recognizer> {
+    let game = Game::from_name(&config.game)
+        .ok_or_else(|| anyhow::anyhow!("unknown game {:?} (touch or coach)", config.game))?;
+    let grammar = config
+        .grammar
+        .clone()
+        .unwrap_or_else(|| crate::grammar::grammar_dir().join(format!("{}.gram", game.name())));
+    let acoustic_model = AcousticModel::resolve(config.acoustic_model.as_deref())?;
+    let cfg = RecognizerConfig {
+        acoustic_model,
+        vad: VadConfig {
+            start_db: config.start_db,
+            hangover_s: config.hangover_s,
+            ..VadConfig::default()
+        },
+        confidence: ConfidenceConfig {
+            acoustic_scale: config.confidence_scale,
+            garbage_penalty: config.garbage_penalty,
+            ..ConfidenceConfig::default()
+        },
+        fillers: Some(
+            config
+                .fillers
+                .clone()
+                .unwrap_or_else(crate::garbage::filler_file),
+        ),
+        noise_robust: config.noise_robust,
+        denoise: config.denoise.then(crate::denoise::DenoiseConfig::default),
+        ..RecognizerConfig::default()
+    };
+    Ok(Recognizer::new(game, &grammar, cfg)?)
+}
+
+fn to_msg(r: &Recognized, latency_s: f64) -> Utterance {
+    Utterance {
+        header: Default::default(),
+        game: r.game,
+        text: r.text.clone(),
+        confidence: r.confidence,
+        command: r.command,
+        in_grammar: r.command != interfaces::msg::command::Command::None,
+        stream_start_s: r.start_s,
+        stream_end_s: r.end_s,
+        decode_duration_s: r.decode_s,
+        latency_s,
+    }
+}
+
+fn print(msg: &Utterance) {
+    if let Ok(j) = serde_json::to_string(msg) {
+        println!("utterance {j}");
+    }
+}
+
+/// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
+pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let mut recognizer = prepared.recognizer;
+    let out = bus.publisher(&topics::SPEECH_UTTERANCE).await?;
+    let model = &recognizer.config().acoustic_model;
+    if model.stock {
+        tracing::warn!(
+            "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
+            model.describe(),
+            adapted_model_dir().display()
+        );
+    } else {
+        tracing::info!("acoustic model: {}", model.describe());
+    }
+    tracing::info!(game = recognizer.game().name(), grammar = %recognizer.grammar().origin.display(), "listening");
+    if let Some(path) = prepared.wav {
+        let bytes = std::fs::read(&path)
+            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+        let pcm =
+            audio::wav::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let samples = audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ);
+        let (results, rec) = tokio::task::spawn_blocking(move || {
+            let mut v = recognizer.push(&samples)?;
+            v.extend(recognizer.flush()?);
+            anyhow::Ok((v, recognizer))
+        })
+        .await??;
+        drop(rec);
+        for r in &results {
+            let mut msg = to_msg(r, r.decode_s);
+            print(&msg);
+            out.publish(&mut msg).await?;
+        }
+        tracing::info!("{}: {} utterances", path.display(), results.len());
+        // Let the last samples leave before the session closes.
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+        return Ok(());
+    }
+    // The decoder blocks for a fraction of a second per utterance: it runs on its own thread.
+    // Bounded both ways: audio the decoder has not taken within DECODER_BACKLOG chunks is
+    // dropped and counted (`audio_dropped/decoder_behind`), and the decoder waits for this
+    // loop to take its results.
+    let (audio_tx, audio_rx) =
+        std::sync::mpsc::sync_channel::<(Vec<i16>, Instant)>(DECODER_BACKLOG);
+    let (res_tx, mut res_rx) =
+        tokio::sync::mpsc::channel::<anyhow::Result<(Recognized, Instant)>>(16);
+    std::thread::Builder::new()
+        .name("decoder".into())
+        .spawn(move || {
+            while let Ok((samples, arrived)) = audio_rx.recv() {
+                match recognizer.push(&samples) {
+                    Ok(v) => {
+                        for r in v {
+                            if res_tx.blocking_send(Ok((r, arrived))).is_err() {
+                                return;
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        let _ = res_tx.blocking_send(Err(e.into()));
+                        return;
+                    }
+                }
+            }
+        })?;
+    let audio = bus.subscriber(&topics::AUDIO_IN).await?;
+    loop {
+        tokio::select! {
+            chunk = audio.recv() => {
+                let chunk = chunk?;
+                let reason = if chunk.sample_rate_hz != RATE_HZ {
+                    Some("wrong_rate")
+                } else if chunk.channels != 1 {
+                    Some("not_mono")
+                } else if chunk.pcm_s16le.len() % 2 != 0 {
+                    Some("odd_bytes")
+                } else if chunk.pcm_s16le.is_empty() {
+                    Some("empty")
+                } else {
+                    None
+                };
+                if let Some(reason) = reason {
+                    let c = bus.counters().counter(&format!("audio_dropped/{reason}"));
+                    let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    if n.is_power_of_two() || n == 0 {
+                        tracing::warn!(
+                            "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz mono s16le), {} so far",
+                            chunk.sample_rate_hz, chunk.channels, chunk.pcm_s16le.len(), n + 1
+                        );
+                    }
+                    continue;
+                }
+                let Some(samples) = chunk.samples() else { continue };
+                match audio_tx.try_send((samples, Instant::now())) {
+                    Ok(()) => {}
+                    Err(std::sync::mpsc::TrySendError::Full(_)) => {
+                        let c = bus.counters().counter("audio_dropped/decoder_behind");
+                        let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if n.is_power_of_two() || n == 0 {
+                            tracing::warn!(
+                                "the decoder is {DECODER_BACKLOG} chunks behind: dropped an audio chunk, {} so far",
+                                n + 1
+                            );
+                        }
+                    }
+                    Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
+                        anyhow::bail!("the decoder thread stopped");
+                    }
+                }
+            }
+            r = res_rx.recv() => {
+                let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };
+                let (r, arrived) = r?;
+                let mut msg = to_msg(&r, arrived.elapsed().as_secs_f64());
+                tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
+                print(&msg);
+                out.publish(&mut msg).await?;
+            }
+            _ = shutdown.wait() => return Ok(()),
+        }
+    }
+}

@@ -1,0 +1,110 @@
+//! The simulated person as a component: plays a scenario (speaks commands into `audio/in`,
+//! moves the ball on `sim/ball`) and checks what the robot does. Exits 0 when the scenario
+//! completes, 1 at the first expectation not met (naming the step and what was seen instead).
+
+use crate::person::{self, PersonConfig};
+use crate::scenario::Scenario;
+use interfaces::node::{Component, Interface};
+use interfaces::{Bus, Shutdown, topics};
+
+/// The simulated person's flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench,
+    /// tracker_restart) or a TOML
+    /// file.
+    #[arg(long, default_value = "still")]
+    pub scenario: String,
+    /// `sim/ball` rate (Hz).
+    #[arg(long, default_value_t = 60.0)]
+    pub ball_rate_hz: f64,
+    /// The robot's hand frame in the DR (the hand centre of the reaching arm).
+    #[arg(long, default_value = "left_hand_center")]
+    pub hand_frame: String,
+    /// The robot's head camera optical frame in the DR.
+    #[arg(long, default_value = "head_rgbd_optical_frame")]
+    pub camera_frame: String,
+    /// Seconds of room noise before the first step.
+    #[arg(long, default_value_t = 2.0)]
+    pub settle_s: f64,
+    /// Seed of the room noise.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Check the scenario and print its steps, then exit.
+    #[arg(long)]
+    pub check: bool,
+}
+
+/// The `loki_world` component.
+#[derive(Debug)]
+pub struct LokiWorld;
+
+impl Component for LokiWorld {
+    const NAME: &'static str = "loki_world";
+    const ABOUT: &'static str = "The simulated person and ball of the touch-the-ball game: plays a \
+        scenario (speaks commands into `audio/in`, moves the ball on `sim/ball`) and checks what \
+        the robot does. Exits 0 when the scenario completes, 1 at the first expectation not met \
+        (naming the step and what was seen instead).";
+    type Config = Config;
+    type Prepared = PersonConfig;
+
+    fn interface(_: &Config) -> Interface {
+        Interface::new(Self::NAME)
+            .publishes(&topics::SIM_BALL)
+            .publishes(&topics::AUDIO_IN)
+            .subscribes(&topics::SPEECH_SPEAKING)
+            .subscribes(&topics::EXECUTIVE_TRANSITIONS)
+            .subscribes(&topics::BODY_REACH_STATUS)
+            .subscribes(&topics::VISION_BALL_EVENTS)
+            .calls(&topics::DR_TRANSFORM)
+    }
+
+    /// Load and check the scenario. With `--check`, print its steps and exit 0 without joining
+    /// the bus.
+    fn prepare(config: Config) -> anyhow::Result<PersonConfig> {
+        let scenario = Scenario::load(&config.scenario)?;
+        if config.check {
+            println!(
+                "{}: {} ({} steps)",
+                scenario.name,
+                scenario.description,
+                scenario.steps.len()
+            );
+            for (i, s) in scenario.steps.iter().enumerate() {
+                println!("{:3}. {s:?}", i + 1);
+            }
+            std::process::exit(0);
+        }
+        if !(config.ball_rate_hz.is_finite()
+            && config.ball_rate_hz > 0.0
+            && config.ball_rate_hz <= 1000.0)
+        {
+            anyhow::bail!("--ball-rate-hz must be in (0, 1000]");
+        }
+        Ok(PersonConfig {
+            scenario,
+            ball_rate_hz: config.ball_rate_hz,
+            hand_frame: config.hand_frame,
+            camera_frame: config.camera_frame,
+            settle_s: config.settle_s.clamp(0.0, 60.0),
+            seed: config.seed,
+        })
+    }
+
+    async fn run(bus: Bus, cfg: PersonConfig, shutdown: Shutdown) -> anyhow::Result<()> {
+        let name = cfg.scenario.name.clone();
+        let o = person::run(bus, cfg, shutdown).await?;
+        println!(
+            "person: scenario {name:?} completed: {} steps in {:.1} s{}",
+            o.steps,
+            o.duration_s,
+            o.closest_hand_to_ball_m
+                .map(|d| format!("; closest hand to ball surface {:.1} cm", d * 100.0))
+                .unwrap_or_default()
+        );
+        // One machine-readable line for benchmarks: each expectation's delay after its action,
+        // and that action.
+        println!("person: timings {}", serde_json::to_string(&o.timings)?);
+        Ok(())
+    }
+}
