@@ -723,7 +723,9 @@ impl Memory {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use interfaces::msg::nao::{FieldPose, PlayerPenalty, TeamRobot, TeamStatus, TrackedObstacle};
+    use interfaces::msg::nao::{
+        FieldPose, PlayerPenalty, PlayerRole, TeamRobot, TeamStatus, TrackedObstacle,
+    };
 
     fn cfg() -> RulesConfig {
         RulesConfig::default()
@@ -732,7 +734,7 @@ mod tests {
     fn robot(n: u8, x: f32, y: f32) -> TeamRobot {
         TeamRobot {
             player_number: n,
-            role: if n == 2 { 18 } else { 17 },
+            role: PlayerRole::from_wire(if n == 2 { 18 } else { 17 }),
             pose: FieldPose {
                 x_mm: x,
                 y_mm: y,
