@@ -1,16 +1,16 @@
-//! The one place where this crate's types meet the bus messages of `interfaces::msg::body`.
+//! Where this crate's goal types meet the `body/joint_goal` service of `interfaces::msg::body`.
 //!
-//! The library keeps idiomatic types (`Option` for "not measured" and "nobody"); the CDR
-//! messages cannot carry `Option`, so they spell it with a flag (`has_effort`) or an empty string
-//! (`owner`). A refused goal becomes a [`JointGoalReply`] with a typed [`JointRefusal`], the joint,
-//! the limit, the value requested and the owner, plus the library's human-readable message.
+//! The joint states are the bus message itself ([`interfaces::msg::body::JointStates`]); the
+//! goal is still read into the library's [`JointGoal`] / [`JointRelease`] here. A refused goal
+//! becomes a [`JointGoalReply`] with a typed [`JointRefusal`], the joint, the limit, the value
+//! requested and the owner, plus the library's human-readable message.
 
 use interfaces::msg::body as m;
 use interfaces::msg::body::{JointGoalReply, JointRefusal};
 
 use crate::error::{JointError, LimitKind};
 use crate::ownership::Preempted;
-use crate::types::{JointCommand, JointGoal, JointRelease, JointStates, JointTarget};
+use crate::types::{JointCommand, JointGoal, JointRelease, JointTarget};
 
 /// What a `body/joint_goal` request asks for.
 #[derive(Debug, Clone, PartialEq)]
@@ -141,31 +141,9 @@ pub fn refusal_counter(r: JointRefusal) -> &'static str {
     }
 }
 
-/// The `body/joint_states` message for the library's states (`driver`: `sim`, `dynamixel`).
-/// The header's stamp is left 0: the publisher stamps it with the bus clock.
-pub fn states_to_msg(states: &JointStates, driver: &str) -> m::JointStates {
-    m::JointStates {
-        header: Default::default(),
-        driver: driver.to_owned(),
-        joints: states
-            .joints
-            .iter()
-            .map(|j| m::JointState {
-                name: j.name.clone(),
-                position: j.position,
-                velocity: j.velocity,
-                has_effort: j.effort.is_some(),
-                effort: j.effort.unwrap_or(0.0),
-                owner: j.owner.clone().unwrap_or_default(),
-            })
-            .collect(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::JointState;
 
     fn target(joint: &str, position: f64) -> m::JointTarget {
         m::JointTarget {
@@ -262,33 +240,5 @@ mod tests {
             refusal_counter(refusal(&JointError::UnknownJoint("z".into()))),
             "refused/unknown_joint"
         );
-    }
-
-    #[test]
-    fn states_spell_none_as_flags_and_empty_owner() {
-        let s = JointStates {
-            stamp_s: 1.0,
-            joints: vec![
-                JointState {
-                    name: "a".into(),
-                    position: 0.1,
-                    velocity: 0.2,
-                    effort: None,
-                    owner: None,
-                },
-                JointState {
-                    name: "b".into(),
-                    position: 0.3,
-                    velocity: 0.0,
-                    effort: Some(1.5),
-                    owner: Some("ik".into()),
-                },
-            ],
-        };
-        let msg = states_to_msg(&s, "sim");
-        assert_eq!(msg.driver, "sim");
-        assert!(!msg.joints[0].has_effort && msg.joints[0].owner.is_empty());
-        assert!(msg.joints[1].has_effort && msg.joints[1].effort == 1.5);
-        assert_eq!(msg.get("b").unwrap().owner, "ik");
     }
 }

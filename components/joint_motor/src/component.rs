@@ -297,8 +297,8 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                     Err(_) => anyhow::bail!("the joint motor lock is poisoned"),
                 };
                 match read {
-                    Ok(s) => {
-                        let mut msg = bus::states_to_msg(&s, driver_name);
+                    Ok(mut msg) => {
+                        msg.driver = driver_name.to_owned();
                         states.publish(&mut msg).await?;
                     }
                     Err(e) => {

@@ -42,11 +42,11 @@
 //! };
 //! motor.submit(&goal, 0.0)?;
 //! let states = motor.states(0.5)?; // called at 100 Hz by the component
-//! assert_eq!(states.get("elbow").unwrap().owner.as_deref(), Some("reach"));
+//! assert_eq!(states.get("elbow").unwrap().owner, "reach");
 //! let states = motor.states(3.0)?;
 //! let elbow = states.get("elbow").unwrap();
 //! assert!((elbow.position - 1.2).abs() < 1e-3);
-//! assert_eq!(elbow.owner, None); // "reach" was silent for more than the 1 s lease
+//! assert_eq!(elbow.owner, ""); // "reach" was silent for more than the 1 s lease
 //! # Ok::<(), joint_motor::JointError>(())
 //! ```
 //!

@@ -220,8 +220,9 @@ impl JointDriver for NeckDriver {
                 name: self.specs[self.neck_offset() + k].name.clone(),
                 position: axis(&angles, k),
                 velocity: axis(&w, k),
-                effort: None,
-                owner: None,
+                has_effort: false,
+                effort: 0.0,
+                owner: String::new(),
             });
         }
         Ok(out)

@@ -201,17 +201,21 @@ impl JointMotor {
         Ok(freed)
     }
 
-    /// The joint states at `now_s`, with the owner of each joint. Also lapses silent clients'
+    /// The joint states at `now_s` (the `body/joint_states` message; the publisher stamps the
+    /// header and names the driver), with the owner of each joint (empty: nobody). Also lapses silent clients'
     /// leases, stopping joints they left moving by velocity.
     pub fn states(&mut self, now_s: f64) -> Result<JointStates, JointError> {
         self.stop_lapsed(now_s)?;
         let mut joints = self.driver.read_state(now_s)?;
         for j in &mut joints {
-            j.owner = self.arbiter.owner(&j.name, now_s).map(|l| l.client.clone());
+            j.owner = self
+                .arbiter
+                .owner(&j.name, now_s)
+                .map_or_else(String::new, |l| l.client.clone());
         }
         Ok(JointStates {
-            stamp_s: now_s,
             joints,
+            ..Default::default()
         })
     }
 
@@ -294,7 +298,8 @@ mod tests {
     }
 
     fn owner(m: &mut JointMotor, joint: &str, now_s: f64) -> Option<String> {
-        m.states(now_s).unwrap().get(joint).unwrap().owner.clone()
+        let owner = m.states(now_s).unwrap().get(joint).unwrap().owner.clone();
+        (!owner.is_empty()).then_some(owner)
     }
 
     #[test]
@@ -325,8 +330,8 @@ mod tests {
             .unwrap();
         m.submit(&goal("reach", 0, &[("elbow", 1.0)]), 0.3).unwrap();
         let s = m.states(0.35).unwrap();
-        assert_eq!(s.get("elbow").unwrap().owner.as_deref(), Some("reach"));
-        assert_eq!(s.get("neck_yaw").unwrap().owner.as_deref(), Some("gaze"));
+        assert_eq!(s.get("elbow").unwrap().owner, "reach");
+        assert_eq!(s.get("neck_yaw").unwrap().owner, "gaze");
     }
 
     #[test]
@@ -381,8 +386,8 @@ mod tests {
             .unwrap();
         assert_eq!(freed, vec!["shoulder".to_string()]);
         let s = m.states(0.8).unwrap();
-        assert_eq!(s.get("shoulder").unwrap().owner, None);
-        assert_eq!(s.get("elbow").unwrap().owner.as_deref(), Some("b"));
+        assert_eq!(s.get("shoulder").unwrap().owner, "");
+        assert_eq!(s.get("elbow").unwrap().owner, "b");
     }
 
     #[test]
@@ -400,7 +405,7 @@ mod tests {
         assert!(m.states(0.4).unwrap().get("shoulder").unwrap().velocity > 0.29);
         // Lease lapses at 0.5 s; the joint decelerates (5 rad/s²) to rest.
         let s = m.states(0.51).unwrap();
-        assert_eq!(s.get("shoulder").unwrap().owner, None);
+        assert_eq!(s.get("shoulder").unwrap().owner, "");
         let s = m.states(1.0).unwrap();
         let sh = s.get("shoulder").unwrap();
         assert!(sh.velocity.abs() < 1e-9, "{}", sh.velocity);

@@ -243,8 +243,9 @@ impl JointDriver for SimDriver {
                 name: s.name.clone(),
                 position: j.q,
                 velocity: j.v,
-                effort: None,
-                owner: None,
+                has_effort: false,
+                effort: 0.0,
+                owner: String::new(),
             })
             .collect())
     }

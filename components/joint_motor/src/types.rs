@@ -1,10 +1,16 @@
-//! Bus-facing data types: plain serde structs, meant to move into `interfaces` later.
+//! The joint driver's data types: plain serde structs. The joint states are the bus message of
+//! `interfaces::msg::body` (re-exported here); the goal types are still the library's own,
+//! read from `body/joint_goal` in [`crate::bus`].
 //!
 //! Units: revolute joints in rad, rad/s, rad/s², effort in N·m; prismatic joints in m, m/s, m/s²,
 //! effort in N. Times are seconds on the caller's clock (`now_s`), never read from the wall clock
 //! inside this crate's algorithms.
 
 use serde::{Deserialize, Serialize};
+
+/// A joint's measured state and all joints at one instant: the `body/joint_states` message
+/// itself (effort flagged by `has_effort`, `owner` empty when nobody owns the joint).
+pub use interfaces::msg::body::{JointState, JointStates};
 
 /// Whether a joint turns or slides: fixes the units of its position (rad or m).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -103,35 +109,6 @@ pub struct JointRelease {
     pub client: String,
     #[serde(default)]
     pub joints: Vec<String>,
-}
-
-/// One joint's measured state.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JointState {
-    pub name: String,
-    /// rad or m.
-    pub position: f64,
-    /// rad/s or m/s.
-    pub velocity: f64,
-    /// N·m or N, when the driver measures it.
-    pub effort: Option<f64>,
-    /// The client that owns the joint now (live lease), if any.
-    pub owner: Option<String>,
-}
-
-/// All joints at one instant (topic `joint_motor/states`, published at 100 Hz or more).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JointStates {
-    /// Time of the measurement on the caller's clock (s).
-    pub stamp_s: f64,
-    pub joints: Vec<JointState>,
-}
-
-impl JointStates {
-    /// The state of the joint called `name`, if present.
-    pub fn get(&self, name: &str) -> Option<&JointState> {
-        self.joints.iter().find(|j| j.name == name)
-    }
 }
 
 /// Health counters of a servo bus link (zero for the `sim` driver).

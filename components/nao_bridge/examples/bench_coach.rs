@@ -9,7 +9,6 @@
 //! The issue names no peer program; as a floor, the same run measures a bare UDP hop on
 //! loopback (send -> receive), which no bridge can beat. Targets: p99 under 1 ms for each path.
 
-use interfaces::msg::nao::{self as bus_msg, NaoBody, NaoCommand};
 use interfaces::{Bus, ConnectArgs, topics};
 use nao_bridge::component::{Config, run};
 use spl::encode_debug;
@@ -26,12 +25,13 @@ fn free_port() -> anyhow::Result<u16> {
     Ok(UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
-fn robot_model() -> LocalWorldModel {
-    LocalWorldModel {
+fn robot_model() -> NaoLocalModel {
+    NaoLocalModel {
+        header: Default::default(),
         player_number: 2,
         team_number: 19,
         fallen: false,
-        pose: Pose2 {
+        pose: FieldPose {
             x_mm: -1000.0,
             y_mm: 200.0,
             theta_rad: 0.3,
@@ -40,15 +40,16 @@ fn robot_model() -> LocalWorldModel {
         ball: FieldPoint::new(500.0, -300.0),
         role: PlayerRole::Controlled,
         obstacles_seen: 1,
-        obstacles: vec![Obstacle {
+        obstacles: vec![NaoObstacle {
             kind: ObstacleKind::Opponent,
             center: FieldPoint::new(2000.0, 0.0),
             last_seen_ms: 1000,
         }],
         message_budget: 1000,
         secs_remaining: 80,
-        left_arm: ArmContact::default(),
-        right_arm: ArmContact::default(),
+        arm_contact: [false; 2],
+        arm_push_direction: [0; 2],
+        arm_last_contact_ms: [0; 2],
         time_since_whistle_ms: 0,
         whistle: WhistleState::NotDetected,
         team_ball: FieldPoint::new(500.0, -300.0),
@@ -99,10 +100,7 @@ async fn main() -> anyhow::Result<()> {
     for i in 0..n + 50 {
         let mut c = NaoCommand {
             body: NaoBody::GoToPosition,
-            target: bus_msg::FieldPoint {
-                x_mm: i as f32,
-                y_mm: 0.0,
-            },
+            target: FieldPoint::new(i as f32, 0.0),
             source: "bench".into(),
             ..Default::default()
         };

@@ -14,9 +14,8 @@
 //! - Every dropped datagram is counted per kind and reason (`drop/<kind>/<reason>` on the
 //!   component's `diagnostics`) and logged at most once a second per reason.
 
-use crate::bus as convert;
 use crate::{ExpectedRobot, Inbound, InboundConfig};
-use interfaces::msg::nao::{GameState, NaoWorldModel};
+use interfaces::msg::nao::{GameState, NaoWorldModel, TrackedObstacle};
 use interfaces::node::Interface;
 use interfaces::{Bus, Shutdown, topics};
 use spl::{FusionConfig, PacketKind, WorldModelFusion, encode_command};
@@ -75,7 +74,7 @@ impl ProposeVia {
 type Latest = (
     Option<NaoWorldModel>,
     Option<GameState>,
-    Vec<spl::types::TrackedObstacle>,
+    Vec<TrackedObstacle>,
 );
 
 /// Logs at most once every 5 s.
@@ -265,8 +264,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
             _ = shutdown.wait() => return Ok(()),
             cmd = commands.recv() => {
                 let cmd = cmd?;
-                let typed = convert::command_from_bus(&cmd);
-                match encode_command(&typed) {
+                match encode_command(&cmd) {
                     Ok(packet) => {
                         if let Err(e) = cmd_sock.send_to(&packet, robot).await {
                             counters.incr("send_errors");
@@ -284,21 +282,19 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
             r = debug_sock.recv_from(&mut debug_buf) => {
                 let (n, from) = r?;
                 let t = now_s();
-                if let Some((model, event)) = inbound.on_debug(&debug_buf[..n], from, t) {
-                    let mut m = convert::local_model_to_bus(&model);
-                    local_pub.publish(&mut m).await?;
+                if let Some((mut model, event)) = inbound.on_debug(&debug_buf[..n], from, t) {
+                    local_pub.publish(&mut model).await?;
                     fusion.ingest(&model, t);
-                    let snapshot = fusion.snapshot(t);
-                    let mut w = convert::world_model_to_bus(&snapshot);
+                    let mut w = fusion.snapshot(t);
                     world_pub.publish(&mut w).await?;
                     if config.dr_updates {
                         latest_tx.send_modify(|l| {
+                            l.2 = w.obstacles.clone();
                             l.0 = Some(w);
-                            l.2 = snapshot.obstacles;
                         });
                     }
                     if let Some((player, e)) = event {
-                        let mut l = convert::link_event_to_bus(player, &e, t);
+                        let mut l = e.message(player);
                         link_pub.publish(&mut l).await?;
                     }
                 }
@@ -306,7 +302,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
             r = gc_sock.recv_from(&mut gc_buf) => {
                 let (n, from) = r?;
                 if let Some(state) = inbound.on_gamecontroller(&gc_buf[..n], from, now_s()) {
-                    let mut g = convert::game_state_to_bus(&state, config.team_number);
+                    let mut g = state.message(config.team_number);
                     game_pub.publish(&mut g).await?;
                     if config.dr_updates {
                         latest_tx.send_modify(|l| l.1 = Some(g));
@@ -320,7 +316,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 if config.dr_updates {
                     let obstacles = fusion.snapshot(t).obstacles;
                     latest_tx.send_if_modified(|l| {
-                        let ids = |v: &[spl::types::TrackedObstacle]| {
+                        let ids = |v: &[TrackedObstacle]| {
                             v.iter().map(|o| o.id).collect::<Vec<_>>()
                         };
                         let changed = ids(&l.2) != ids(&obstacles);
@@ -332,7 +328,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                 }
                 for (player, e) in inbound.poll(t) {
                     tracing::warn!("robot {player} not responding");
-                    let mut l = convert::link_event_to_bus(player, &e, t);
+                    let mut l = e.message(player);
                     link_pub.publish(&mut l).await?;
                 }
                 // Mirror the per-reason drop counters into the bus counters (diagnostics).

@@ -6,8 +6,9 @@ use std::net::{IpAddr, SocketAddr};
 
 use serde::{Deserialize, Serialize};
 
+use crate::link::LinkEvent;
 use crate::link::LinkMonitor;
-use spl::types::{GameControllerState, LinkEvent, LocalWorldModel};
+use spl::types::{GameControllerState, NaoLocalModel};
 use spl::validation::{DropMonitor, PacketError, PacketKind, SourceFilter};
 use spl::{decode_debug, decode_gamecontroller};
 
@@ -99,7 +100,7 @@ impl Inbound {
         bytes: &[u8],
         from: SocketAddr,
         now_s: f64,
-    ) -> Option<(LocalWorldModel, Option<(u8, LinkEvent)>)> {
+    ) -> Option<(NaoLocalModel, Option<(u8, LinkEvent)>)> {
         if let Err(e) = self.robot_filter.check(PacketKind::Debug, from) {
             return self.refuse(e, now_s);
         }

@@ -1,7 +1,56 @@
 //! Link-loss detection for one robot: no valid packet for `timeout_s` => "robot not responding",
 //! then "link restored" at the next packet. Pure: time (s, caller's clock) is passed in.
 
-use spl::types::LinkEvent;
+use interfaces::msg::nao::{LinkChange, NaoLinkEvent};
+
+/// Link state changes of one robot, with the monitor's times.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LinkEvent {
+    /// The first packet ever arrived.
+    Established {
+        /// Time of the packet (s).
+        at_s: f64,
+    },
+    /// No packet for longer than the timeout: the robot is not responding.
+    RobotNotResponding {
+        /// Time of detection (s).
+        at_s: f64,
+        /// Time of the last packet (s), `None` if none ever came.
+        last_packet_s: Option<f64>,
+    },
+    /// Packets are coming again after a `RobotNotResponding`.
+    LinkRestored {
+        /// Time of the packet (s).
+        at_s: f64,
+        /// How long the link was silent (s).
+        silent_for_s: f64,
+    },
+}
+
+impl LinkEvent {
+    /// The `nao/link` message of player `player` for this event: for `RobotNotResponding`, the
+    /// silence so far (the detection time when no packet ever came); for `LinkRestored`, how
+    /// long it was silent. The header is left for the publisher to stamp.
+    pub fn message(&self, player: u8) -> NaoLinkEvent {
+        let (change, silent_for_s) = match *self {
+            LinkEvent::Established { .. } => (LinkChange::Established, 0.0),
+            LinkEvent::RobotNotResponding {
+                at_s,
+                last_packet_s,
+            } => (
+                LinkChange::RobotNotResponding,
+                last_packet_s.map_or(at_s, |t| at_s - t),
+            ),
+            LinkEvent::LinkRestored { silent_for_s, .. } => (LinkChange::Restored, silent_for_s),
+        };
+        NaoLinkEvent {
+            header: Default::default(),
+            player_number: player,
+            change,
+            silent_for_s,
+        }
+    }
+}
 
 /// Whether the link is considered up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -3,7 +3,12 @@
 //!
 //! Field frame: millimetres, origin at the centre spot, x towards the opponent goal, y to the
 //! left; angles in radians counter-clockwise from +x. Enum-like bytes keep the robot's own
-//! numbering (documented per field) so nothing is lost between the wire and the bus.
+//! numbering (documented per field) so nothing is lost between the wire and the bus: the
+//! command's enums in their variant order, [`ObstacleKind`], [`PlayerRole`] and
+//! [`WhistleState`] as the byte itself (`u8` in CDR and JSON).
+//!
+//! These are the only definitions: the `spl` library's codecs (command and debug packets) and
+//! its team world model fusion read and write these messages directly.
 
 use crate::header::Header;
 use serde::{Deserialize, Serialize};
@@ -11,11 +16,30 @@ use serde::{Deserialize, Serialize};
 /// A point on the field (mm).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct FieldPoint {
+    /// x (mm), towards the opponent goal.
     pub x_mm: f32,
+    /// y (mm), to the left when looking at the opponent goal.
     pub y_mm: f32,
 }
 
-/// A pose on the field.
+impl FieldPoint {
+    /// A point from its coordinates in millimetres.
+    pub const fn new(x_mm: f32, y_mm: f32) -> Self {
+        Self { x_mm, y_mm }
+    }
+
+    /// Euclidean distance to `other`, in millimetres.
+    pub fn distance_to(&self, other: &FieldPoint) -> f32 {
+        (self.x_mm - other.x_mm).hypot(self.y_mm - other.y_mm)
+    }
+
+    /// Whether both coordinates are finite.
+    pub fn is_finite(&self) -> bool {
+        self.x_mm.is_finite() && self.y_mm.is_finite()
+    }
+}
+
+/// A pose on the field: position (mm) and heading `theta_rad`, counter-clockwise from +x.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct FieldPose {
     pub x_mm: f32,
@@ -23,8 +47,16 @@ pub struct FieldPose {
     pub theta_rad: f32,
 }
 
-/// Body commands; `Keep` leaves the robot's current body command.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+impl FieldPose {
+    /// The position part of the pose.
+    pub fn position(&self) -> FieldPoint {
+        FieldPoint::new(self.x_mm, self.y_mm)
+    }
+}
+
+/// Body commands; `Keep` leaves the robot's current body command. The variant order is the
+/// robot's numbering (byte 0 of the command packet): `Keep` 0, `GoToPosition` 1 ... `Stop` 10.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum NaoBody {
     #[default]
     Keep,
@@ -41,8 +73,9 @@ pub enum NaoBody {
     Stop,
 }
 
-/// Head commands; `Keep` leaves the robot's current head command.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// Head commands; `Keep` leaves the robot's current head command. The variant order is the
+/// robot's numbering (byte 1 of the command packet): `Keep` 0, `LookAtTheBall` 1 ... `Scan` 5.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum NaoHead {
     #[default]
     Keep,
@@ -53,12 +86,120 @@ pub enum NaoHead {
     Scan,
 }
 
-/// The robot's strategy (always replaced by a command).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// The robot's strategy (always replaced by a command): `Default` 0, `Passages` 1 on the wire.
+/// The original operator GUI numbered 1 Default, 2 Passages, 3 Defence; see
+/// [`NaoStrategy::from_gui_number`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum NaoStrategy {
     #[default]
     Default,
     Passages,
+}
+
+impl NaoBody {
+    /// All body commands but `Keep`, in wire order (1..=10).
+    pub const ALL: [NaoBody; 10] = [
+        NaoBody::GoToPosition,
+        NaoBody::Dribble,
+        NaoBody::GoToBallAndDribble,
+        NaoBody::Kick,
+        NaoBody::Spazza,
+        NaoBody::Pass,
+        NaoBody::AskForTheBall,
+        NaoBody::Turn,
+        NaoBody::SearchTheBall,
+        NaoBody::Stop,
+    ];
+
+    /// The byte the robot expects (0 for `Keep`, 1..=10).
+    pub fn wire_value(self) -> u8 {
+        match self {
+            NaoBody::Keep => 0,
+            NaoBody::GoToPosition => 1,
+            NaoBody::Dribble => 2,
+            NaoBody::GoToBallAndDribble => 3,
+            NaoBody::Kick => 4,
+            NaoBody::Spazza => 5,
+            NaoBody::Pass => 6,
+            NaoBody::AskForTheBall => 7,
+            NaoBody::Turn => 8,
+            NaoBody::SearchTheBall => 9,
+            NaoBody::Stop => 10,
+        }
+    }
+
+    /// The command for a wire byte (0 is `Keep`); `None` for unknown values.
+    pub fn from_wire(value: u8) -> Option<Self> {
+        match value {
+            0 => Some(NaoBody::Keep),
+            v => Self::ALL.get(usize::from(v) - 1).copied(),
+        }
+    }
+
+    /// Whether the robot uses the command's target for this body command.
+    pub fn needs_target(self) -> bool {
+        matches!(self, NaoBody::GoToPosition | NaoBody::Turn)
+    }
+}
+
+impl NaoHead {
+    /// All head commands but `Keep`, in wire order (1..=5).
+    pub const ALL: [NaoHead; 5] = [
+        NaoHead::LookAtTheBall,
+        NaoHead::LookForward,
+        NaoHead::LookLeft,
+        NaoHead::LookRight,
+        NaoHead::Scan,
+    ];
+
+    /// The byte the robot expects (0 for `Keep`, 1..=5).
+    pub fn wire_value(self) -> u8 {
+        match self {
+            NaoHead::Keep => 0,
+            NaoHead::LookAtTheBall => 1,
+            NaoHead::LookForward => 2,
+            NaoHead::LookLeft => 3,
+            NaoHead::LookRight => 4,
+            NaoHead::Scan => 5,
+        }
+    }
+
+    /// The command for a wire byte (0 is `Keep`); `None` for unknown values.
+    pub fn from_wire(value: u8) -> Option<Self> {
+        match value {
+            0 => Some(NaoHead::Keep),
+            v => Self::ALL.get(usize::from(v) - 1).copied(),
+        }
+    }
+}
+
+impl NaoStrategy {
+    /// The byte the robot reads (0 or 1).
+    pub fn wire_value(self) -> u8 {
+        match self {
+            NaoStrategy::Default => 0,
+            NaoStrategy::Passages => 1,
+        }
+    }
+
+    /// The strategy for a robot wire byte.
+    pub fn from_wire(value: u8) -> Option<Self> {
+        match value {
+            0 => Some(NaoStrategy::Default),
+            1 => Some(NaoStrategy::Passages),
+            _ => None,
+        }
+    }
+
+    /// The strategy for the original operator GUI's number (1 Default, 2 Passages); 3 (Defence)
+    /// and anything else is `None` because the robot has no such strategy.
+    pub fn from_gui_number(value: u8) -> Option<Self> {
+        match value {
+            1 => Some(NaoStrategy::Default),
+            2 => Some(NaoStrategy::Passages),
+            _ => None,
+        }
+    }
 }
 
 /// An operator command for the controlled robot (topic `nao/command`). At least one of body and
@@ -75,11 +216,219 @@ pub struct NaoCommand {
     pub source: String,
 }
 
+impl NaoCommand {
+    /// A body-only command (`target` is used by GoToPosition and Turn only).
+    pub fn body(body: NaoBody, strategy: NaoStrategy, target: FieldPoint) -> Self {
+        Self {
+            body,
+            strategy,
+            target,
+            ..Default::default()
+        }
+    }
+
+    /// A head-only command.
+    pub fn head(head: NaoHead, strategy: NaoStrategy) -> Self {
+        Self {
+            head,
+            strategy,
+            ..Default::default()
+        }
+    }
+}
+
+/// Obstacle kinds of the debug packet (B-Human `Obstacle::Type`), on the bus as their wire byte
+/// (0..=7) so nothing changes between the packet and the message.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+pub enum ObstacleKind {
+    /// 0
+    #[default]
+    Goalpost,
+    /// 1
+    Unknown,
+    /// 2: a robot of unknown team.
+    SomeRobot,
+    /// 3
+    Opponent,
+    /// 4
+    Teammate,
+    /// 5
+    FallenSomeRobot,
+    /// 6
+    FallenOpponent,
+    /// 7
+    FallenTeammate,
+}
+
+impl ObstacleKind {
+    /// All kinds, in wire order 0..=7.
+    pub const ALL: [ObstacleKind; 8] = [
+        ObstacleKind::Goalpost,
+        ObstacleKind::Unknown,
+        ObstacleKind::SomeRobot,
+        ObstacleKind::Opponent,
+        ObstacleKind::Teammate,
+        ObstacleKind::FallenSomeRobot,
+        ObstacleKind::FallenOpponent,
+        ObstacleKind::FallenTeammate,
+    ];
+
+    /// The wire byte (0..=7).
+    pub fn wire_value(self) -> u8 {
+        self as u8
+    }
+
+    /// The kind for a wire byte, `None` when out of range.
+    pub fn from_wire(value: u8) -> Option<Self> {
+        Self::ALL.get(usize::from(value)).copied()
+    }
+
+    /// The snake_case name (`opponent`, `fallen_some_robot`), as the DR's `obstacle_type`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ObstacleKind::Goalpost => "goalpost",
+            ObstacleKind::Unknown => "unknown",
+            ObstacleKind::SomeRobot => "some_robot",
+            ObstacleKind::Opponent => "opponent",
+            ObstacleKind::Teammate => "teammate",
+            ObstacleKind::FallenSomeRobot => "fallen_some_robot",
+            ObstacleKind::FallenOpponent => "fallen_opponent",
+            ObstacleKind::FallenTeammate => "fallen_teammate",
+        }
+    }
+
+    /// How specific the kind is, for merging observations: a known team beats "some robot",
+    /// which beats "unknown".
+    pub fn specificity(self) -> u8 {
+        match self {
+            ObstacleKind::Unknown => 0,
+            ObstacleKind::SomeRobot | ObstacleKind::FallenSomeRobot => 1,
+            _ => 2,
+        }
+    }
+}
+
+impl From<ObstacleKind> for u8 {
+    fn from(k: ObstacleKind) -> u8 {
+        k.wire_value()
+    }
+}
+
+impl TryFrom<u8> for ObstacleKind {
+    type Error = String;
+    fn try_from(v: u8) -> Result<Self, String> {
+        Self::from_wire(v).ok_or_else(|| format!("obstacle kind {v} is not 0..=7"))
+    }
+}
+
+/// The player role byte: 17 autonomous, 18 controlled, anything else a B-Human `PlayerRole`
+/// (kept as sent). On the bus as that byte.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "u8", from = "u8")]
+pub enum PlayerRole {
+    /// 17: the autonomous teammate of the challenge.
+    Autonomous,
+    /// 18: the operator-controlled robot.
+    Controlled,
+    /// Any other B-Human role value, kept as sent.
+    Other(u8),
+}
+
+impl Default for PlayerRole {
+    fn default() -> Self {
+        PlayerRole::Other(0)
+    }
+}
+
+impl PlayerRole {
+    /// The wire byte.
+    pub fn wire_value(self) -> u8 {
+        match self {
+            PlayerRole::Autonomous => 17,
+            PlayerRole::Controlled => 18,
+            PlayerRole::Other(v) => v,
+        }
+    }
+
+    /// The role for a wire byte (total).
+    pub fn from_wire(value: u8) -> Self {
+        match value {
+            17 => PlayerRole::Autonomous,
+            18 => PlayerRole::Controlled,
+            v => PlayerRole::Other(v),
+        }
+    }
+}
+
+impl From<PlayerRole> for u8 {
+    fn from(r: PlayerRole) -> u8 {
+        r.wire_value()
+    }
+}
+
+impl From<u8> for PlayerRole {
+    fn from(v: u8) -> Self {
+        Self::from_wire(v)
+    }
+}
+
+impl std::fmt::Display for PlayerRole {
+    /// The wire byte, as the robot numbers roles.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.wire_value())
+    }
+}
+
+/// The whistle detector's state: 0 don't know, 1 not detected, 2 detected (on the bus as that
+/// byte).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+pub enum WhistleState {
+    /// 0
+    #[default]
+    DontKnow,
+    /// 1
+    NotDetected,
+    /// 2
+    Detected,
+}
+
+impl WhistleState {
+    /// The wire byte.
+    pub fn wire_value(self) -> u8 {
+        self as u8
+    }
+
+    /// The state for a wire byte.
+    pub fn from_wire(value: u8) -> Option<Self> {
+        match value {
+            0 => Some(WhistleState::DontKnow),
+            1 => Some(WhistleState::NotDetected),
+            2 => Some(WhistleState::Detected),
+            _ => None,
+        }
+    }
+}
+
+impl From<WhistleState> for u8 {
+    fn from(w: WhistleState) -> u8 {
+        w.wire_value()
+    }
+}
+
+impl TryFrom<u8> for WhistleState {
+    type Error = String;
+    fn try_from(v: u8) -> Result<Self, String> {
+        Self::from_wire(v).ok_or_else(|| format!("whistle state {v} is not 0..=2"))
+    }
+}
+
 /// One obstacle of a robot's local model.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct NaoObstacle {
     /// 0 goalpost, 1 unknown, 2 some robot, 3 opponent, 4 teammate, 5-7 fallen variants of 2-4.
-    pub kind: u8,
+    pub kind: ObstacleKind,
     pub center: FieldPoint,
     /// Robot clock (ms).
     pub last_seen_ms: u32,
@@ -98,7 +447,7 @@ pub struct NaoLocalModel {
     pub ball_age_s: f32,
     pub ball: FieldPoint,
     /// 17 autonomous, 18 controlled, others per B-Human's PlayerRole.
-    pub role: u8,
+    pub role: PlayerRole,
     /// How many obstacles the robot sees (only the first 20 are sent).
     pub obstacles_seen: u8,
     pub obstacles: Vec<NaoObstacle>,
@@ -110,7 +459,7 @@ pub struct NaoLocalModel {
     pub arm_last_contact_ms: [u32; 2],
     pub time_since_whistle_ms: u32,
     /// 0 don't know, 1 not detected, 2 detected.
-    pub whistle: u8,
+    pub whistle: WhistleState,
     pub team_ball: FieldPoint,
     /// mm/s.
     pub team_ball_velocity: FieldPoint,
@@ -124,7 +473,7 @@ pub struct NaoLocalModel {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct TeamRobot {
     pub player_number: u8,
-    pub role: u8,
+    pub role: PlayerRole,
     pub pose: FieldPose,
     pub fallen: bool,
     /// Seconds since its last packet.
@@ -134,7 +483,11 @@ pub struct TeamRobot {
 /// A tracked obstacle of the fused model.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct TrackedObstacle {
-    pub kind: u8,
+    /// The track's identity: stable while it lives, never reused by the same fusion (names its
+    /// DR node, `obstacle_<id>`).
+    pub id: u32,
+    /// Most specific kind seen.
+    pub kind: ObstacleKind,
     pub center: FieldPoint,
     /// Seconds since last seen by any robot.
     pub age_s: f64,

@@ -3,18 +3,18 @@
 //!
 //! | offset | type | field |
 //! |---|---|---|
-//! | 0 | u8 | body (0 keep, 1..=10 [`BodyCommand`]) |
-//! | 1 | u8 | head (0 keep, 1..=5 [`HeadCommand`]) |
+//! | 0 | u8 | body ([`NaoBody`]: 0 keep, 1..=10) |
+//! | 1 | u8 | head ([`NaoHead`]: 0 keep, 1..=5) |
 //! | 2 | u8 | strategy (0 Default, 1 Passages) |
 //! | 3 | f32 | x (mm, global) |
 //! | 7 | f32 | y (mm, global) |
 //!
-//! [`encode_command`] is the bridge side: it refuses a command without body and head, a
-//! target-needing body without a target, and non-finite coordinates, so what leaves the bridge
+//! [`encode_command`] is the bridge side: it takes the bus's [`NaoCommand`] and refuses a command
+//! without body and head, and non-finite target coordinates, so what leaves the bridge
 //! is always exactly 11 valid bytes. [`decode_command`] is the robot side (the simulated robot
 //! uses it): it accepts exactly 11 bytes and refuses what the encoder would never produce.
 
-use crate::types::{BodyCommand, FieldPoint, HeadCommand, NaoCommand, Strategy};
+use crate::types::{FieldPoint, NaoBody, NaoCommand, NaoHead, NaoStrategy};
 use crate::validation::{PacketError, PacketKind};
 use crate::wire::{f32_at, put, u8_at};
 
@@ -25,15 +25,12 @@ pub const COMMAND_PORT: u16 = 65306;
 /// Offset of the original operator software's flat numbering: 1-10 bodies, 11-15 heads.
 pub const FLAT_HEAD_OFFSET: u8 = 10;
 
-/// Why a typed command cannot be sent.
+/// Why a command cannot be sent.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CommandEncodeError {
     /// Neither a body nor a head command: the packet would carry nothing.
     #[error("a command needs a body or a head command")]
     Empty,
-    /// The body command needs a target point and has none.
-    #[error("{0:?} needs a target point")]
-    MissingTarget(BodyCommand),
     /// The target has a NaN or infinite coordinate.
     #[error("target coordinates must be finite")]
     NonFiniteTarget,
@@ -42,64 +39,39 @@ pub enum CommandEncodeError {
     UnknownFlatNumber(u8),
 }
 
-impl NaoCommand {
-    /// A body-only command.
-    pub fn body(body: BodyCommand, strategy: Strategy, target: Option<FieldPoint>) -> Self {
-        Self {
-            body: Some(body),
-            head: None,
-            strategy,
-            target,
+/// A command from the original operator software's flat number (1..=10 body, 11..=15 head).
+pub fn command_from_flat(
+    number: u8,
+    strategy: NaoStrategy,
+    target: FieldPoint,
+) -> Result<NaoCommand, CommandEncodeError> {
+    match number {
+        1..=10 => NaoBody::from_wire(number).map(|b| NaoCommand::body(b, strategy, target)),
+        11..=15 => {
+            NaoHead::from_wire(number - FLAT_HEAD_OFFSET).map(|h| NaoCommand::head(h, strategy))
         }
+        _ => None,
     }
-
-    /// A head-only command.
-    pub fn head(head: HeadCommand, strategy: Strategy) -> Self {
-        Self {
-            body: None,
-            head: Some(head),
-            strategy,
-            target: None,
-        }
-    }
-
-    /// A command from the original operator software's flat number (1..=10 body, 11..=15 head).
-    pub fn from_flat(
-        number: u8,
-        strategy: Strategy,
-        target: Option<FieldPoint>,
-    ) -> Result<Self, CommandEncodeError> {
-        if let Some(body) = BodyCommand::from_wire(number) {
-            Ok(Self::body(body, strategy, target))
-        } else if let Some(head) = number
-            .checked_sub(FLAT_HEAD_OFFSET)
-            .and_then(HeadCommand::from_wire)
-        {
-            Ok(Self::head(head, strategy))
-        } else {
-            Err(CommandEncodeError::UnknownFlatNumber(number))
-        }
-    }
+    .ok_or(CommandEncodeError::UnknownFlatNumber(number))
 }
 
-/// Encode a typed command into the 11-byte packet. The target is written only for bodies that
-/// use it ([`BodyCommand::needs_target`]); otherwise x and y are 0.
+/// Encode a command into the 11-byte packet. The target is written only for bodies that use it
+/// ([`NaoBody::needs_target`]); otherwise x and y are 0. The header and `source` are not sent.
 pub fn encode_command(cmd: &NaoCommand) -> Result<[u8; COMMAND_PACKET_LEN], CommandEncodeError> {
-    if cmd.body.is_none() && cmd.head.is_none() {
+    if cmd.body == NaoBody::Keep && cmd.head == NaoHead::Keep {
         return Err(CommandEncodeError::Empty);
     }
-    let target = match cmd.body {
-        Some(body) if body.needs_target() => {
-            cmd.target.ok_or(CommandEncodeError::MissingTarget(body))?
-        }
-        _ => FieldPoint::default(),
+    let target = if cmd.body.needs_target() {
+        cmd.target
+    } else {
+        FieldPoint::default()
     };
     if !target.is_finite() {
         return Err(CommandEncodeError::NonFiniteTarget);
     }
     let mut b = [0u8; COMMAND_PACKET_LEN];
-    b[0] = cmd.body.map_or(0, BodyCommand::wire_value);
-    b[1] = cmd.head.map_or(0, HeadCommand::wire_value);
+    b[0] = cmd.body.wire_value();
+    b[1] = cmd.head.wire_value();
     b[2] = cmd.strategy.wire_value();
     put(&mut b, 3, &target.x_mm.to_le_bytes());
     put(&mut b, 7, &target.y_mm.to_le_bytes());
@@ -107,8 +79,8 @@ pub fn encode_command(cmd: &NaoCommand) -> Result<[u8; COMMAND_PACKET_LEN], Comm
 }
 
 /// Decode a command packet as the robot does, strictly: exactly 11 bytes, known body, head and
-/// strategy values, finite coordinates, not empty. `target` is `Some` only for target-needing
-/// bodies.
+/// strategy values, finite coordinates, not empty. `target` is the packet's (x, y) for
+/// target-needing bodies and (0, 0) otherwise; the header and `source` are left empty.
 pub fn decode_command(bytes: &[u8]) -> Result<NaoCommand, PacketError> {
     const K: PacketKind = PacketKind::Command;
     if bytes.len() != COMMAND_PACKET_LEN {
@@ -126,16 +98,10 @@ pub fn decode_command(bytes: &[u8]) -> Result<NaoCommand, PacketError> {
         field,
         value: u32::from(value),
     };
-    let body = match body_raw {
-        0 => None,
-        v => Some(BodyCommand::from_wire(v).ok_or_else(|| invalid("body", v))?),
-    };
-    let head = match head_raw {
-        0 => None,
-        v => Some(HeadCommand::from_wire(v).ok_or_else(|| invalid("head", v))?),
-    };
+    let body = NaoBody::from_wire(body_raw).ok_or_else(|| invalid("body", body_raw))?;
+    let head = NaoHead::from_wire(head_raw).ok_or_else(|| invalid("head", head_raw))?;
     let strategy =
-        Strategy::from_wire(strategy_raw).ok_or_else(|| invalid("strategy", strategy_raw))?;
+        NaoStrategy::from_wire(strategy_raw).ok_or_else(|| invalid("strategy", strategy_raw))?;
     let x = f32_at(bytes, 3);
     let y = f32_at(bytes, 7);
     if !x.is_finite() {
@@ -150,16 +116,20 @@ pub fn decode_command(bytes: &[u8]) -> Result<NaoCommand, PacketError> {
             field: "y",
         });
     }
-    if body.is_none() && head.is_none() {
+    if body == NaoBody::Keep && head == NaoHead::Keep {
         return Err(PacketError::EmptyCommand);
     }
+    let target = if body.needs_target() {
+        FieldPoint::new(x, y)
+    } else {
+        FieldPoint::default()
+    };
     Ok(NaoCommand {
         body,
         head,
         strategy,
-        target: body
-            .filter(|b| b.needs_target())
-            .map(|_| FieldPoint::new(x, y)),
+        target,
+        ..Default::default()
     })
 }
 
@@ -178,19 +148,20 @@ mod tests {
         b[3..7].copy_from_slice(&1500.5f32.to_le_bytes());
         b[7..11].copy_from_slice(&(-2250.25f32).to_le_bytes());
         let c = decode_command(&b).unwrap();
-        assert_eq!(c.body, Some(BodyCommand::GoToPosition));
-        assert_eq!(c.head, Some(HeadCommand::LookLeft));
-        assert_eq!(c.strategy, Strategy::Passages);
-        assert_eq!(c.target, Some(FieldPoint::new(1500.5, -2250.25)));
+        assert_eq!(c.body, NaoBody::GoToPosition);
+        assert_eq!(c.head, NaoHead::LookLeft);
+        assert_eq!(c.strategy, NaoStrategy::Passages);
+        assert_eq!(c.target, FieldPoint::new(1500.5, -2250.25));
     }
 
     #[test]
     fn encoder_writes_the_documented_bytes() {
         let c = NaoCommand {
-            body: Some(BodyCommand::Turn),
-            head: Some(HeadCommand::Scan),
-            strategy: Strategy::Default,
-            target: Some(FieldPoint::new(-1.0, 2.0)),
+            body: NaoBody::Turn,
+            head: NaoHead::Scan,
+            strategy: NaoStrategy::Default,
+            target: FieldPoint::new(-1.0, 2.0),
+            ..Default::default()
         };
         let b = encode_command(&c).unwrap();
         assert_eq!(b.len(), 11);
@@ -202,15 +173,19 @@ mod tests {
 
     #[test]
     fn every_body_and_head_round_trips() {
-        for body in BodyCommand::ALL {
-            let target = body.needs_target().then(|| FieldPoint::new(100.0, -50.0));
-            let c = NaoCommand::body(body, Strategy::Passages, target);
+        for body in NaoBody::ALL {
+            let target = if body.needs_target() {
+                FieldPoint::new(100.0, -50.0)
+            } else {
+                FieldPoint::default()
+            };
+            let c = NaoCommand::body(body, NaoStrategy::Passages, target);
             let b = encode_command(&c).unwrap();
             assert_eq!(b[0], body.wire_value());
             assert_eq!(decode_command(&b).unwrap(), c);
         }
-        for head in HeadCommand::ALL {
-            let c = NaoCommand::head(head, Strategy::Default);
+        for head in NaoHead::ALL {
+            let c = NaoCommand::head(head, NaoStrategy::Default);
             let b = encode_command(&c).unwrap();
             assert_eq!((b[0], b[1]), (0, head.wire_value()));
             assert_eq!(decode_command(&b).unwrap(), c);
@@ -218,23 +193,13 @@ mod tests {
     }
 
     #[test]
-    fn encoder_refuses_nothing_missing_target_and_nan() {
-        let empty = NaoCommand {
-            body: None,
-            head: None,
-            strategy: Strategy::Default,
-            target: None,
-        };
+    fn encoder_refuses_nothing_and_nan() {
+        let empty = NaoCommand::default();
         assert_eq!(encode_command(&empty), Err(CommandEncodeError::Empty));
-        let no_target = NaoCommand::body(BodyCommand::GoToPosition, Strategy::Default, None);
-        assert_eq!(
-            encode_command(&no_target),
-            Err(CommandEncodeError::MissingTarget(BodyCommand::GoToPosition))
-        );
         let nan = NaoCommand::body(
-            BodyCommand::Turn,
-            Strategy::Default,
-            Some(FieldPoint::new(f32::NAN, 0.0)),
+            NaoBody::Turn,
+            NaoStrategy::Default,
+            FieldPoint::new(f32::NAN, 0.0),
         );
         assert_eq!(
             encode_command(&nan),
@@ -242,29 +207,30 @@ mod tests {
         );
         // A kick ignores the target: x, y are sent as zeros.
         let kick = NaoCommand::body(
-            BodyCommand::Kick,
-            Strategy::Default,
-            Some(FieldPoint::new(9.0, 9.0)),
+            NaoBody::Kick,
+            NaoStrategy::Default,
+            FieldPoint::new(9.0, 9.0),
         );
         assert_eq!(&encode_command(&kick).unwrap()[3..], &[0; 8]);
     }
 
     #[test]
     fn flat_numbering_maps_bodies_and_heads() {
-        let c = NaoCommand::from_flat(4, Strategy::Default, None).unwrap();
-        assert_eq!(c.body, Some(BodyCommand::Kick));
-        let c = NaoCommand::from_flat(15, Strategy::Default, None).unwrap();
-        assert_eq!(c.head, Some(HeadCommand::Scan));
-        assert_eq!(c.body, None);
-        assert!(NaoCommand::from_flat(0, Strategy::Default, None).is_err());
-        assert!(NaoCommand::from_flat(16, Strategy::Default, None).is_err());
-        assert_eq!(Strategy::from_gui_number(2), Some(Strategy::Passages));
-        assert_eq!(Strategy::from_gui_number(3), None);
+        let origin = FieldPoint::default();
+        let c = command_from_flat(4, NaoStrategy::Default, origin).unwrap();
+        assert_eq!(c.body, NaoBody::Kick);
+        let c = command_from_flat(15, NaoStrategy::Default, origin).unwrap();
+        assert_eq!(c.head, NaoHead::Scan);
+        assert_eq!(c.body, NaoBody::Keep);
+        assert!(command_from_flat(0, NaoStrategy::Default, origin).is_err());
+        assert!(command_from_flat(16, NaoStrategy::Default, origin).is_err());
+        assert_eq!(NaoStrategy::from_gui_number(2), Some(NaoStrategy::Passages));
+        assert_eq!(NaoStrategy::from_gui_number(3), None);
     }
 
     #[test]
     fn decoder_errors_have_their_reason() {
-        let ok = encode_command(&NaoCommand::head(HeadCommand::Scan, Strategy::Default)).unwrap();
+        let ok = encode_command(&NaoCommand::head(NaoHead::Scan, NaoStrategy::Default)).unwrap();
         assert_eq!(
             decode_command(&ok[..10]).unwrap_err().reason(),
             DropReason::WrongSize

@@ -36,8 +36,7 @@
 //! the robot's array is whatever its memory held. Padding is ignored.
 
 use crate::types::{
-    ArmContact, FieldPoint, LocalWorldModel, Obstacle, ObstacleKind, PlayerRole, Pose2,
-    WhistleState,
+    FieldPoint, FieldPose, NaoLocalModel, NaoObstacle, ObstacleKind, PlayerRole, WhistleState,
 };
 use crate::validation::{PacketError, PacketKind};
 use crate::wire::{bytes4_at, f32_at, put, u8_at, u16_at, u32_at};
@@ -137,7 +136,7 @@ fn point_at(
 /// other than `RGrt`, a version other than 4, a data-bytes field other than 348, `fallen` > 1,
 /// unknown obstacle types or whistle states (in the used slots), and any non-finite float in a
 /// used field.
-pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
+pub fn decode_debug(b: &[u8]) -> Result<NaoLocalModel, PacketError> {
     const K: PacketKind = PacketKind::Debug;
     if b.len() != DEBUG_PACKET_LEN {
         return Err(PacketError::WrongSize {
@@ -171,7 +170,7 @@ pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
         1 => true,
         v => return Err(invalid("fallen", u32::from(v))),
     };
-    let pose = Pose2 {
+    let pose = FieldPose {
         x_mm: finite(f32_at(b, OFF_POSE), "pose_x")?,
         y_mm: finite(f32_at(b, OFF_POSE + 4), "pose_y")?,
         theta_rad: finite(f32_at(b, OFF_POSE + 8), "pose_theta")?,
@@ -185,7 +184,7 @@ pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
         let t = u8_at(b, OFF_OBS_TYPES + i);
         let kind =
             ObstacleKind::from_wire(t).ok_or_else(|| invalid("obstacle_type", u32::from(t)))?;
-        obstacles.push(Obstacle {
+        obstacles.push(NaoObstacle {
             kind,
             center: FieldPoint::new(
                 finite(f32_at(b, OFF_OBS_X + 4 * i), "obstacle_x")?,
@@ -194,22 +193,18 @@ pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
             last_seen_ms: u32_at(b, OFF_OBS_SEEN + 4 * i),
         });
     }
-    let arm = |side: usize| -> Result<ArmContact, PacketError> {
-        let contact = match u8_at(b, OFF_ARM_CONTACT + side) {
-            0 => false,
-            1 => true,
-            v => return Err(invalid("arm_contact", u32::from(v))),
-        };
-        Ok(ArmContact {
-            contact,
-            push_direction: u8_at(b, OFF_ARM_PUSH + side),
-            time_of_last_contact_ms: u32_at(b, OFF_ARM_TIME + 4 * side),
-        })
+    let contact = |side: usize| -> Result<bool, PacketError> {
+        match u8_at(b, OFF_ARM_CONTACT + side) {
+            0 => Ok(false),
+            1 => Ok(true),
+            v => Err(invalid("arm_contact", u32::from(v))),
+        }
     };
     let whistle_raw = u8_at(b, OFF_WHISTLE);
     let whistle = WhistleState::from_wire(whistle_raw)
         .ok_or_else(|| invalid("whistle", u32::from(whistle_raw)))?;
-    Ok(LocalWorldModel {
+    Ok(NaoLocalModel {
+        header: Default::default(),
         player_number: u8_at(b, OFF_PLAYER),
         team_number: u8_at(b, OFF_TEAM),
         fallen,
@@ -221,8 +216,9 @@ pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
         obstacles,
         message_budget: u16_at(b, OFF_BUDGET),
         secs_remaining: u16_at(b, OFF_SECS),
-        left_arm: arm(0)?,
-        right_arm: arm(1)?,
+        arm_contact: [contact(0)?, contact(1)?],
+        arm_push_direction: [u8_at(b, OFF_ARM_PUSH), u8_at(b, OFF_ARM_PUSH + 1)],
+        arm_last_contact_ms: [u32_at(b, OFF_ARM_TIME), u32_at(b, OFF_ARM_TIME + 4)],
         time_since_whistle_ms: u32_at(b, OFF_WHISTLE_TIME),
         whistle,
         team_ball: point_at(b, OFF_TEAM_BALL, "team_ball_x", "team_ball_y")?,
@@ -235,7 +231,7 @@ pub fn decode_debug(b: &[u8]) -> Result<LocalWorldModel, PacketError> {
 
 /// Encode a local model as the robot would send it (the 8 leading bytes and the padding are
 /// zero; unused obstacle slots are zero).
-pub fn encode_debug(m: &LocalWorldModel) -> Result<[u8; DEBUG_PACKET_LEN], DebugEncodeError> {
+pub fn encode_debug(m: &NaoLocalModel) -> Result<[u8; DEBUG_PACKET_LEN], DebugEncodeError> {
     if m.obstacles.len() > MAX_OBSTACLES {
         return Err(DebugEncodeError::TooManyObstacles(m.obstacles.len()));
     }
@@ -292,13 +288,13 @@ pub fn encode_debug(m: &LocalWorldModel) -> Result<[u8; DEBUG_PACKET_LEN], Debug
     }
     put(&mut b, OFF_BUDGET, &m.message_budget.to_le_bytes());
     put(&mut b, OFF_SECS, &m.secs_remaining.to_le_bytes());
-    for (side, arm) in [m.left_arm, m.right_arm].iter().enumerate() {
-        b[OFF_ARM_CONTACT + side] = u8::from(arm.contact);
-        b[OFF_ARM_PUSH + side] = arm.push_direction;
+    for side in 0..2 {
+        b[OFF_ARM_CONTACT + side] = u8::from(m.arm_contact[side]);
+        b[OFF_ARM_PUSH + side] = m.arm_push_direction[side];
         put(
             &mut b,
             OFF_ARM_TIME + 4 * side,
-            &arm.time_of_last_contact_ms.to_le_bytes(),
+            &m.arm_last_contact_ms[side].to_le_bytes(),
         );
     }
     put(
@@ -340,7 +336,7 @@ pub(crate) mod tests {
         assert_eq!((m.player_number, m.team_number, m.fallen), (2, 17, true));
         assert_eq!(
             m.pose,
-            Pose2 {
+            FieldPose {
                 x_mm: -1234.5,
                 y_mm: 987.25,
                 theta_rad: 1.5
@@ -353,17 +349,17 @@ pub(crate) mod tests {
         assert_eq!(
             m.obstacles,
             vec![
-                Obstacle {
+                NaoObstacle {
                     kind: ObstacleKind::Opponent,
                     center: FieldPoint::new(100.0, 200.0),
                     last_seen_ms: 1000
                 },
-                Obstacle {
+                NaoObstacle {
                     kind: ObstacleKind::Teammate,
                     center: FieldPoint::new(-300.0, 400.0),
                     last_seen_ms: 70_000
                 },
-                Obstacle {
+                NaoObstacle {
                     kind: ObstacleKind::FallenOpponent,
                     center: FieldPoint::new(500.0, -600.0),
                     // Decoded as u32: as f32 this would be a tiny denormal-looking number.
@@ -372,22 +368,9 @@ pub(crate) mod tests {
             ]
         );
         assert_eq!((m.message_budget, m.secs_remaining), (1100, 75));
-        assert_eq!(
-            m.left_arm,
-            ArmContact {
-                contact: true,
-                push_direction: 2,
-                time_of_last_contact_ms: 123_456
-            }
-        );
-        assert_eq!(
-            m.right_arm,
-            ArmContact {
-                contact: false,
-                push_direction: 3,
-                time_of_last_contact_ms: 654_321
-            }
-        );
+        assert_eq!(m.arm_contact, [true, false]);
+        assert_eq!(m.arm_push_direction, [2, 3]);
+        assert_eq!(m.arm_last_contact_ms, [123_456, 654_321]);
         assert_eq!(m.time_since_whistle_ms, 2500);
         assert_eq!(m.whistle, WhistleState::Detected);
         // The team ball is at 328, its velocity at 336 (the Python server was one place off).

@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 
-use crate::types::{BodyCommand, FieldPoint, HeadCommand, NaoCommand, Strategy};
+use crate::types::{FieldPoint, NaoBody, NaoCommand, NaoHead, NaoStrategy};
 use crate::validation::{DropMonitor, DropReason, PacketKind};
 use crate::{
     decode_command, decode_debug, decode_gamecontroller, encode_command, encode_debug,
@@ -12,9 +12,9 @@ use crate::{
 
 fn valid_command() -> Vec<u8> {
     encode_command(&NaoCommand::body(
-        BodyCommand::GoToPosition,
-        Strategy::Passages,
-        Some(FieldPoint::new(1000.0, -500.0)),
+        NaoBody::GoToPosition,
+        NaoStrategy::Passages,
+        FieldPoint::new(1000.0, -500.0),
     ))
     .unwrap()
     .to_vec()
@@ -105,10 +105,11 @@ proptest! {
                                       passages in any::<bool>(),
                                       x in -5000.0f32..5000.0, y in -4000.0f32..4000.0) {
         let cmd = NaoCommand {
-            body: body.map(|i| BodyCommand::ALL[i]),
-            head: head.map(|i| HeadCommand::ALL[i]),
-            strategy: if passages { Strategy::Passages } else { Strategy::Default },
-            target: Some(FieldPoint::new(x, y)),
+            body: body.map_or(NaoBody::Keep, |i| NaoBody::ALL[i]),
+            head: head.map_or(NaoHead::Keep, |i| NaoHead::ALL[i]),
+            strategy: if passages { NaoStrategy::Passages } else { NaoStrategy::Default },
+            target: FieldPoint::new(x, y),
+            ..Default::default()
         };
         match encode_command(&cmd) {
             Ok(b) => {
@@ -118,7 +119,7 @@ proptest! {
                 prop_assert_eq!(d.head, cmd.head);
                 prop_assert_eq!(d.strategy, cmd.strategy);
             }
-            Err(_) => prop_assert!(cmd.body.is_none() && cmd.head.is_none()),
+            Err(_) => prop_assert!(cmd.body == NaoBody::Keep && cmd.head == NaoHead::Keep),
         }
     }
 }

@@ -23,18 +23,20 @@
 //!
 //! | byte | value | meaning |
 //! |---|---|---|
-//! | 0 body | 0 | none: keep the current body command (`body: None`) |
-//! | | 1..=10 | [`BodyCommand`]: 1 GoToPosition, 2 Dribble, 3 GoToBallAndDribble, 4 Kick, 5 Spazza, 6 Pass, 7 AskForTheBall, 8 Turn, 9 SearchTheBall, 10 Stop |
-//! | 1 head | 0 | none: keep the current head command (`head: None`) |
-//! | | 1..=5 | [`HeadCommand`]: 1 LookAtTheBall, 2 LookForward, 3 LookLeft, 4 LookRight, 5 Scan |
-//! | 2 strategy | 0, 1 | [`Strategy`]: 0 Default, 1 Passages |
+//! | 0 body | 0 | [`NaoBody::Keep`]: keep the current body command |
+//! | | 1..=10 | [`NaoBody`]: 1 GoToPosition, 2 Dribble, 3 GoToBallAndDribble, 4 Kick, 5 Spazza, 6 Pass, 7 AskForTheBall, 8 Turn, 9 SearchTheBall, 10 Stop |
+//! | 1 head | 0 | [`NaoHead::Keep`]: keep the current head command |
+//! | | 1..=5 | [`NaoHead`]: 1 LookAtTheBall, 2 LookForward, 3 LookLeft, 4 LookRight, 5 Scan |
+//! | 2 strategy | 0, 1 | [`NaoStrategy`]: 0 Default, 1 Passages |
 //!
-//! The typed enums map to these bytes only at the edge ([`BodyCommand::wire_value`] etc.). The
-//! original operator GUI's strategy numbers (1 Default, 2 Passages, 3 Defence) are mapped by
-//! [`Strategy::from_gui_number`] (Defence does not exist on the robot and is refused); its flat
-//! command numbers (1-10 bodies, 11-15 heads) by [`NaoCommand::from_flat`]. GoToPosition and
-//! Turn carry their target in x, y; the other bodies send 0, 0. A packet is always exactly 11
-//! bytes and never carries neither body nor head ([`CommandEncodeError::Empty`]).
+//! The command is the bus message `interfaces::msg::nao::NaoCommand` (re-exported here with the
+//! other Nao messages, see [`types`]), whose enums follow this numbering
+//! ([`NaoBody::wire_value`] etc.). The original operator GUI's strategy numbers (1 Default,
+//! 2 Passages, 3 Defence) are mapped by [`NaoStrategy::from_gui_number`] (Defence does not exist
+//! on the robot and is refused); its flat command numbers (1-10 bodies, 11-15 heads) by
+//! [`command::command_from_flat`]. GoToPosition and Turn carry their target in x, y; the other
+//! bodies send 0, 0. A packet is always exactly 11 bytes and never carries neither body nor
+//! head ([`CommandEncodeError::Empty`]).
 //!
 //! # Bad input
 //!
@@ -47,10 +49,11 @@
 //! # World model
 //!
 //! [`WorldModelFusion`] fuses the local models of the controlled robot and its teammate into a
-//! [`GlobalWorldModel`]: a constant-velocity Kalman filter for the ball (with ball-age handling)
+//! [`NaoWorldModel`] (the `nao/world_model` message): a constant-velocity Kalman filter for the ball (with ball-age handling)
 //! and distance-associated obstacle tracks with ages; see [`world_model`].
 //!
-//! The data types of the link are in [`types`].
+//! The data types of the link are in [`types`]: the bus messages of `interfaces::msg::nao`,
+//! which the codecs and the fusion read and write directly, and the GameController packet.
 
 pub mod command;
 pub mod debug;

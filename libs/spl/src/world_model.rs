@@ -40,8 +40,7 @@ use nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2, Vector4};
 use serde::{Deserialize, Serialize};
 
 use crate::types::{
-    BallEstimate, FieldPoint, GlobalWorldModel, LocalWorldModel, ObstacleKind, TeamRobot,
-    TrackedObstacle,
+    FieldPoint, NaoLocalModel, NaoWorldModel, ObstacleKind, TeamRobot, TrackedObstacle,
 };
 
 /// Two ball reports with the same position whose observation times differ by less than this
@@ -267,7 +266,7 @@ impl BallFilter {
 
 #[derive(Debug, Clone)]
 struct RobotEntry {
-    model: LocalWorldModel,
+    model: NaoLocalModel,
     received_s: f64,
     /// min(received_ms - last_seen_ms) over all sightings; robot clock -> ours.
     clock_offset_ms: Option<f64>,
@@ -287,7 +286,16 @@ struct Track {
     observations: u32,
 }
 
-/// Fuses robots' local models into a [`GlobalWorldModel`].
+/// The ball estimate of a snapshot, before it is laid out flat in the message.
+struct Ball {
+    position: FieldPoint,
+    velocity: FieldPoint,
+    age_s: f64,
+    sigma_mm: f64,
+    confidence: f64,
+}
+
+/// Fuses robots' local models into a [`NaoWorldModel`].
 #[derive(Debug, Clone)]
 pub struct WorldModelFusion {
     config: FusionConfig,
@@ -323,7 +331,7 @@ impl WorldModelFusion {
 
     /// Fuse one robot's local model received at `received_s`. Returns false (and ignores it)
     /// when it is from another team.
-    pub fn ingest(&mut self, model: &LocalWorldModel, received_s: f64) -> bool {
+    pub fn ingest(&mut self, model: &NaoLocalModel, received_s: f64) -> bool {
         if self
             .config
             .team_number
@@ -446,8 +454,9 @@ impl WorldModelFusion {
         true
     }
 
-    /// The fused model at `now_s`.
-    pub fn snapshot(&self, now_s: f64) -> GlobalWorldModel {
+    /// The fused model at `now_s` (the `nao/world_model` message; the header is left for the
+    /// publisher to stamp).
+    pub fn snapshot(&self, now_s: f64) -> NaoWorldModel {
         let c = &self.config;
         let robots: Vec<TeamRobot> = self
             .robots
@@ -468,7 +477,7 @@ impl WorldModelFusion {
             let (position, velocity, sigma) = self
                 .ball
                 .estimate_at(now_s.min(t_last + c.ball_max_prediction_s))?;
-            Some(BallEstimate {
+            Some(Ball {
                 position,
                 velocity,
                 age_s: age,
@@ -510,21 +519,47 @@ impl WorldModelFusion {
         let freshness =
             controlled.map_or(0.0, |r| (1.0 - r.age_s / c.robot_timeout_s).clamp(0.0, 1.0));
         let confidence = ball.as_ref().map_or(0.0, |b| b.confidence) * freshness;
-        GlobalWorldModel {
-            time_s: now_s,
+        let mut model = NaoWorldModel {
             robots,
-            ball,
             obstacles,
-            autonomous_is_striker,
+            striker_known: autonomous_is_striker.is_some(),
+            autonomous_is_striker: autonomous_is_striker.unwrap_or(false),
             confidence,
+            ..Default::default()
+        };
+        if let Some(b) = ball {
+            model.ball_known = true;
+            model.ball = b.position;
+            model.ball_velocity = b.velocity;
+            model.ball_age_s = b.age_s;
+            model.ball_sigma_mm = b.sigma_mm;
+            model.ball_confidence = b.confidence;
         }
+        model
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::{ArmContact, Obstacle, PlayerRole, Pose2, WhistleState};
+    use crate::types::{FieldPose, NaoObstacle, PlayerRole, WhistleState};
+
+    /// The snapshot's ball, when known: position, velocity, age (s), confidence.
+    struct SeenBall {
+        position: FieldPoint,
+        velocity: FieldPoint,
+        age_s: f64,
+        confidence: f64,
+    }
+
+    fn ball(m: &NaoWorldModel) -> Option<SeenBall> {
+        m.ball_known.then_some(SeenBall {
+            position: m.ball,
+            velocity: m.ball_velocity,
+            age_s: m.ball_age_s,
+            confidence: m.ball_confidence,
+        })
+    }
 
     /// Deterministic Gaussian noise for tests (SplitMix64 + Box-Muller).
     struct Noise(u64);
@@ -543,12 +578,13 @@ mod tests {
         }
     }
 
-    fn local(player: u8, pose: (f32, f32), ball: (f32, f32), ball_age_s: f32) -> LocalWorldModel {
-        LocalWorldModel {
+    fn local(player: u8, pose: (f32, f32), ball: (f32, f32), ball_age_s: f32) -> NaoLocalModel {
+        NaoLocalModel {
+            header: Default::default(),
             player_number: player,
             team_number: 5,
             fallen: false,
-            pose: Pose2 {
+            pose: FieldPose {
                 x_mm: pose.0,
                 y_mm: pose.1,
                 theta_rad: 0.0,
@@ -564,8 +600,9 @@ mod tests {
             obstacles: vec![],
             message_budget: 1200,
             secs_remaining: 90,
-            left_arm: ArmContact::default(),
-            right_arm: ArmContact::default(),
+            arm_contact: [false; 2],
+            arm_push_direction: [0; 2],
+            arm_last_contact_ms: [0; 2],
             time_since_whistle_ms: 0,
             whistle: WhistleState::NotDetected,
             team_ball: FieldPoint::default(),
@@ -653,7 +690,7 @@ mod tests {
             "repeats of one sighting are one observation"
         );
         let m = w.snapshot(4.0);
-        let b = m.ball.unwrap();
+        let b = ball(&m).unwrap();
         assert!((b.age_s - 3.0).abs() < 1e-6, "ball age {}", b.age_s);
         assert!(
             b.confidence < 0.25,
@@ -661,7 +698,7 @@ mod tests {
             b.confidence
         );
         // Forgotten after 10 s.
-        assert!(w.snapshot(11.5).ball.is_none());
+        assert!(!w.snapshot(11.5).ball_known);
     }
 
     #[test]
@@ -677,7 +714,7 @@ mod tests {
             w.ingest(&local(2, (0.0, 500.0), (x as f32, 0.0), 0.4), t);
         }
         let t = 3.9;
-        let b = w.snapshot(t).ball.unwrap();
+        let b = ball(&w.snapshot(t)).unwrap();
         assert!(
             (f64::from(b.position.x_mm) - 500.0 * t).abs() < 60.0,
             "x {}",
@@ -688,7 +725,7 @@ mod tests {
         // Too old observations (> 1 s) are not used at all.
         let mut w = WorldModelFusion::new(FusionConfig::default());
         w.ingest(&local(2, (0.0, 0.0), (100.0, 0.0), 1.5), 5.0);
-        assert!(w.snapshot(5.0).ball.is_none());
+        assert!(!w.snapshot(5.0).ball_known);
     }
 
     #[test]
@@ -703,7 +740,7 @@ mod tests {
             w.ingest(&local(1, (1500.0, 0.0), (2000.0, 300.0), 0.0), t);
         }
         let m = w.snapshot(1.0);
-        let b = m.ball.unwrap();
+        let b = ball(&m).unwrap();
         assert!(b.position.distance_to(&FieldPoint::new(2000.0, 300.0)) < 30.0);
         // Another team's robot is ignored when our team number is configured.
         let mut ours = WorldModelFusion::new(FusionConfig {
@@ -715,7 +752,7 @@ mod tests {
         assert!(!ours.ingest(&stranger, 0.0));
         assert!(ours.ingest(&local(2, (0.0, 0.0), (0.0, 0.0), 0.0), 0.0));
         assert_eq!(ours.snapshot(0.0).robots.len(), 1);
-        assert_eq!(m.autonomous_is_striker, Some(true));
+        assert!(m.striker_known && m.autonomous_is_striker);
         assert_eq!(m.robots.len(), 2);
         assert!(
             m.confidence > 0.5 && m.confidence <= 1.0,
@@ -738,7 +775,7 @@ mod tests {
             let noise = if i % 2 == 0 { 40.0 } else { -40.0 };
             m.obstacles = vec![
                 // An opponent at (2000, 1000), first seen as "some robot".
-                Obstacle {
+                NaoObstacle {
                     kind: if i < 3 {
                         ObstacleKind::SomeRobot
                     } else {
@@ -748,13 +785,13 @@ mod tests {
                     last_seen_ms: robot_ms(t),
                 },
                 // A second opponent far from the first.
-                Obstacle {
+                NaoObstacle {
                     kind: ObstacleKind::Opponent,
                     center: FieldPoint::new(-2500.0, -1500.0 + noise),
                     last_seen_ms: robot_ms(t),
                 },
                 // Our teammate (robot 1 stands there): not an obstacle.
-                Obstacle {
+                NaoObstacle {
                     kind: ObstacleKind::Teammate,
                     center: FieldPoint::new(1000.0, -2000.0),
                     last_seen_ms: robot_ms(t),
@@ -775,7 +812,7 @@ mod tests {
         for i in 10..50 {
             let t = f64::from(i) * 0.1;
             let mut m = local(2, (0.0, 0.0), (500.0, 0.0), 0.0);
-            m.obstacles = vec![Obstacle {
+            m.obstacles = vec![NaoObstacle {
                 kind: ObstacleKind::Opponent,
                 center: FieldPoint::new(2000.0, 1000.0),
                 last_seen_ms: robot_ms(t),
@@ -793,7 +830,7 @@ mod tests {
         for i in 0..3 {
             let t = 15.0 + f64::from(i) * 0.1;
             let mut m = local(2, (0.0, 0.0), (500.0, 0.0), 0.0);
-            m.obstacles = vec![Obstacle {
+            m.obstacles = vec![NaoObstacle {
                 kind: ObstacleKind::Opponent,
                 center: FieldPoint::new(2000.0, 1000.0),
                 last_seen_ms: frozen + 100 * (i + 1),
@@ -808,7 +845,7 @@ mod tests {
         // Aged in between: at 2.9 s the second one was 2 s old.
         let mut w2 = WorldModelFusion::new(FusionConfig::default());
         let mut m = local(2, (0.0, 0.0), (0.0, 0.0), 0.0);
-        m.obstacles = vec![Obstacle {
+        m.obstacles = vec![NaoObstacle {
             kind: ObstacleKind::Opponent,
             center: FieldPoint::new(3000.0, 0.0),
             last_seen_ms: 10_000,

@@ -7,9 +7,9 @@ use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 use spl::{
-    BodyCommand, FieldPoint, GameControllerState, GamePhase, GameState, HeadCommand,
-    LocalWorldModel, NaoCommand, Obstacle, ObstacleKind, PacketError, Penalty, PlayerInfo,
-    PlayerRole, Pose2, SetPlay, Strategy, TeamInfo, WhistleState, decode_command, encode_debug,
+    FieldPoint, FieldPose, GameControllerState, GamePhase, GameState, NaoBody, NaoCommand, NaoHead,
+    NaoLocalModel, NaoObstacle, NaoStrategy, ObstacleKind, PacketError, Penalty, PlayerInfo,
+    PlayerRole, SetPlay, TeamInfo, WhistleState, decode_command, encode_debug,
     encode_gamecontroller,
 };
 
@@ -145,14 +145,14 @@ impl SimRobot {
 /// The controlled robot's command state (the robot's `HumanCommand` representation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlledState {
-    /// Current body command (`None` until the first one).
-    pub body: Option<BodyCommand>,
+    /// Current body command (`None` until the first one; never `Keep`).
+    pub body: Option<NaoBody>,
     /// Target of the body command (mm).
     pub target: V2,
-    /// Current head command.
-    pub head: HeadCommand,
+    /// Current head command (never `Keep`).
+    pub head: NaoHead,
     /// Current strategy.
-    pub strategy: Strategy,
+    pub strategy: NaoStrategy,
     /// Whether a one-shot body command (Kick, Spazza, Pass, Turn, GoToPosition, SearchTheBall)
     /// has finished; the robot then stands.
     pub done: bool,
@@ -228,8 +228,8 @@ impl SplField {
             controlled: ControlledState {
                 body: None,
                 target: V2::ZERO,
-                head: HeadCommand::LookAtTheBall,
-                strategy: Strategy::Default,
+                head: NaoHead::LookAtTheBall,
+                strategy: NaoStrategy::Default,
                 done: false,
                 ball_requested: false,
             },
@@ -348,15 +348,14 @@ impl SplField {
 
     fn apply_command(&mut self, cmd: &NaoCommand) {
         let c = &mut self.controlled;
-        if let Some(body) = cmd.body {
-            c.body = Some(body);
-            let t = cmd.target.unwrap_or_default();
-            c.target = V2::new(f64::from(t.x_mm), f64::from(t.y_mm));
+        if cmd.body != NaoBody::Keep {
+            c.body = Some(cmd.body);
+            c.target = V2::new(f64::from(cmd.target.x_mm), f64::from(cmd.target.y_mm));
             c.done = false;
-            c.ball_requested = body == BodyCommand::AskForTheBall;
+            c.ball_requested = cmd.body == NaoBody::AskForTheBall;
         }
-        if let Some(head) = cmd.head {
-            c.head = head;
+        if cmd.head != NaoHead::Keep {
+            c.head = cmd.head;
         }
         c.strategy = cmd.strategy;
         self.events.push((self.time_s, SimEvent::CommandApplied));
@@ -495,18 +494,19 @@ impl SplField {
         let r = &self.robots[i];
         let head = match r.id {
             RobotId::CONTROLLED => self.controlled.head,
-            _ => HeadCommand::LookAtTheBall,
+            _ => NaoHead::LookAtTheBall,
         };
         let searching = r.id == RobotId::CONTROLLED
-            && self.controlled.body == Some(BodyCommand::SearchTheBall)
+            && self.controlled.body == Some(NaoBody::SearchTheBall)
             && !self.controlled.done;
         let known_ball = r.seen_ball.filter(|(_, ts)| t - ts < 3.0);
         let desired = match (head, searching) {
-            (_, true) | (HeadCommand::Scan, _) => 1.5 * (t * PI / 2.0).sin(),
-            (HeadCommand::LookForward, _) => 0.0,
-            (HeadCommand::LookLeft, _) => 1.0,
-            (HeadCommand::LookRight, _) => -1.0,
-            (HeadCommand::LookAtTheBall, _) => match known_ball {
+            (_, true) | (NaoHead::Scan, _) => 1.5 * (t * PI / 2.0).sin(),
+            (NaoHead::LookForward, _) => 0.0,
+            (NaoHead::LookLeft, _) => 1.0,
+            (NaoHead::LookRight, _) => -1.0,
+            // `Keep` is never stored: the robot keeps its previous head command.
+            (NaoHead::LookAtTheBall | NaoHead::Keep, _) => match known_ball {
                 Some((b, _)) => angle_diff((b - r.pos).angle(), r.theta),
                 // Ball unknown: scan for it.
                 None => 1.5 * (t * PI / 2.0).sin(),
@@ -701,21 +701,22 @@ impl SplField {
         let ball = r.seen_ball.map(|(b, _)| b);
         let ball_age = r.seen_ball.map_or(f64::INFINITY, |(_, t)| self.time_s - t);
         match body {
-            BodyCommand::GoToPosition => Intent::Walk {
+            NaoBody::GoToPosition => Intent::Walk {
                 to: c.target,
                 face: None,
             },
-            BodyCommand::Stop => Intent::Stand,
+            // `Keep` is never stored: a packet keeping the body leaves `body` as it was.
+            NaoBody::Stop | NaoBody::Keep => Intent::Stand,
             // Intent, not the quirk: face the target (x, y), not (y, x).
-            BodyCommand::Turn => Intent::Face((c.target - r.pos).angle()),
+            NaoBody::Turn => Intent::Face((c.target - r.pos).angle()),
             // Intent, not the quirk: turn (head scanning) until the ball is seen.
-            BodyCommand::SearchTheBall => Intent::Spin(0.8),
-            BodyCommand::AskForTheBall => match ball {
+            NaoBody::SearchTheBall => Intent::Spin(0.8),
+            NaoBody::AskForTheBall => match ball {
                 Some(b) => Intent::Face((b - r.pos).angle()),
                 None => Intent::Stand,
             },
             _ if ball.is_none() || ball_age > 5.0 => Intent::Spin(0.8),
-            BodyCommand::Dribble => {
+            NaoBody::Dribble => {
                 let b = ball.unwrap_or(self.ball);
                 if (b - r.pos).norm() <= 600.0 {
                     Intent::Dribble {
@@ -726,17 +727,17 @@ impl SplField {
                     Intent::Stand
                 }
             }
-            BodyCommand::GoToBallAndDribble => {
+            NaoBody::GoToBallAndDribble => {
                 let b = ball.unwrap_or(self.ball);
                 Intent::Dribble {
                     target: self.free_point(b),
                 }
             }
-            BodyCommand::Kick => Intent::Kick {
+            NaoBody::Kick => Intent::Kick {
                 target: self.shot_target(),
                 speed: 3000.0,
             },
-            BodyCommand::Spazza => {
+            NaoBody::Spazza => {
                 let b = ball.unwrap_or(self.ball);
                 let away = (b - own_goal()).normalized();
                 Intent::Kick {
@@ -744,7 +745,7 @@ impl SplField {
                     speed: 3500.0,
                 }
             }
-            BodyCommand::Pass => {
+            NaoBody::Pass => {
                 // Intent, not the quirk: pass to the active teammate; dribble without one.
                 if self.active(RobotId::AUTONOMOUS) {
                     let mate = self.robot_pos(RobotId::AUTONOMOUS).unwrap_or_default();
@@ -771,10 +772,10 @@ impl SplField {
             r.id == RobotId::CONTROLLED && r.seen_ball.is_some_and(|(_, ts)| t - ts < 0.2)
         });
         c.done |= match body {
-            BodyCommand::Kick | BodyCommand::Spazza => outcome == Outcome::Kicked,
-            BodyCommand::Pass => outcome == Outcome::Kicked,
-            BodyCommand::GoToPosition | BodyCommand::Turn => outcome == Outcome::Arrived,
-            BodyCommand::SearchTheBall => seen_recently,
+            NaoBody::Kick | NaoBody::Spazza => outcome == Outcome::Kicked,
+            NaoBody::Pass => outcome == Outcome::Kicked,
+            NaoBody::GoToPosition | NaoBody::Turn => outcome == Outcome::Arrived,
+            NaoBody::SearchTheBall => seen_recently,
             _ => false,
         };
     }
@@ -805,7 +806,7 @@ impl SplField {
         }
         let wants_pass = ctl_active
             && (self.controlled.ball_requested
-                || (self.controlled.strategy == Strategy::Passages && ctl_pos.x > me.x + 500.0));
+                || (self.controlled.strategy == NaoStrategy::Passages && ctl_pos.x > me.x + 500.0));
         if wants_pass {
             return Intent::Kick {
                 target: ctl_pos,
@@ -1094,7 +1095,7 @@ impl SplField {
     /// The local world model a robot would send now (perceived, noisy). Draws the
     /// self-localisation noise from the run's generator: calling it from outside changes the
     /// rest of the run (still deterministically).
-    pub fn local_model(&mut self, id: RobotId) -> Option<LocalWorldModel> {
+    pub fn local_model(&mut self, id: RobotId) -> Option<NaoLocalModel> {
         let t = self.time_s;
         let secs = self.secs_remaining().ceil() as u16;
         let budget = self.message_budget;
@@ -1113,11 +1114,11 @@ impl SplField {
             self.rng.gauss(0.02),
         ];
         let r = self.robot(id)?;
-        let mut obstacles: Vec<Obstacle> = r
+        let mut obstacles: Vec<NaoObstacle> = r
             .seen_robots
             .values()
             .chain(r.seen_posts.values())
-            .map(|s| Obstacle {
+            .map(|s| NaoObstacle {
                 kind: s.kind,
                 center: s.pos.to_point(),
                 last_seen_ms: r.robot_ms(s.t),
@@ -1128,11 +1129,12 @@ impl SplField {
             Some((b, ts)) => (b.to_point(), (t - ts) as f32),
             None => (FieldPoint::default(), 1000.0),
         };
-        Some(LocalWorldModel {
+        Some(NaoLocalModel {
+            header: Default::default(),
             player_number: id.number,
             team_number: team,
             fallen: r.is_fallen(),
-            pose: Pose2 {
+            pose: FieldPose {
                 x_mm: (r.pos.x + noise[0]) as f32,
                 y_mm: (r.pos.y + noise[1]) as f32,
                 theta_rad: wrap(r.theta + noise[2]) as f32,
@@ -1148,8 +1150,9 @@ impl SplField {
             obstacles,
             message_budget: budget,
             secs_remaining: secs,
-            left_arm: Default::default(),
-            right_arm: Default::default(),
+            arm_contact: [false; 2],
+            arm_push_direction: [0; 2],
+            arm_last_contact_ms: [0; 2],
             time_since_whistle_ms: whistle_since.map_or(0, |s| (s * 1000.0) as u32),
             whistle: match whistle_since {
                 Some(s) if s < 1.0 => WhistleState::Detected,

@@ -1,7 +1,7 @@
 //! Scenario tests of the field: physics, behaviours, rules, timeline, packets, determinism.
 
 use spl::{
-    BodyCommand, FieldPoint, FusionConfig, GameState, HeadCommand, NaoCommand, Strategy,
+    FieldPoint, FusionConfig, GameState, NaoBody, NaoCommand, NaoHead, NaoStrategy,
     WorldModelFusion, decode_debug, decode_gamecontroller, encode_command,
 };
 
@@ -25,15 +25,16 @@ fn playing(opponents_play: bool) -> SplField {
 
 fn send(
     f: &mut SplField,
-    body: Option<BodyCommand>,
-    head: Option<HeadCommand>,
+    body: Option<NaoBody>,
+    head: Option<NaoHead>,
     target: Option<(f32, f32)>,
 ) {
     let cmd = NaoCommand {
-        body,
-        head,
-        strategy: Strategy::Default,
-        target: target.map(|(x, y)| FieldPoint::new(x, y)),
+        body: body.unwrap_or(NaoBody::Keep),
+        head: head.unwrap_or(NaoHead::Keep),
+        strategy: NaoStrategy::Default,
+        target: target.map_or(FieldPoint::default(), |(x, y)| FieldPoint::new(x, y)),
+        ..Default::default()
     };
     f.receive_command(&encode_command(&cmd).unwrap()).unwrap();
 }
@@ -62,7 +63,7 @@ fn a_kick_moves_the_ball_and_friction_stops_it() {
     f.place_robot(RobotId::DEFENDER, V2::new(4000.0, -2500.0), 0.0);
     f.place_ball(V2::new(-2000.0, 0.0), V2::ZERO);
     f.place_robot(RobotId::CONTROLLED, V2::new(-2600.0, 0.0), 0.0);
-    send(&mut f, Some(BodyCommand::Kick), None, None);
+    send(&mut f, Some(NaoBody::Kick), None, None);
     assert!(
         run_until(&mut f, 20.0, |f| f.events().iter().any(|(_, e)| matches!(
             e,
@@ -123,7 +124,7 @@ fn go_to_position_reaches_the_target() {
     f.set_game_state(GameState::Playing);
     send(
         &mut f,
-        Some(BodyCommand::GoToPosition),
+        Some(NaoBody::GoToPosition),
         None,
         Some((1000.0, 1500.0)),
     );
@@ -149,7 +150,7 @@ fn commands_are_not_obeyed_in_set_and_bad_packets_change_nothing() {
     let before = pos(&f, RobotId::CONTROLLED);
     send(
         &mut f,
-        Some(BodyCommand::GoToPosition),
+        Some(NaoBody::GoToPosition),
         None,
         Some((0.0, 2000.0)),
     );
@@ -157,9 +158,9 @@ fn commands_are_not_obeyed_in_set_and_bad_packets_change_nothing() {
     assert_eq!(pos(&f, RobotId::CONTROLLED), before, "no motion in SET");
     // A 10-byte packet and a NaN target are refused; the command stays GoToPosition.
     let good = encode_command(&NaoCommand::body(
-        BodyCommand::Stop,
-        Strategy::Default,
-        None,
+        NaoBody::Stop,
+        NaoStrategy::Default,
+        FieldPoint::default(),
     ))
     .unwrap();
     assert!(f.receive_command(&good[..10]).is_err());
@@ -167,11 +168,11 @@ fn commands_are_not_obeyed_in_set_and_bad_packets_change_nothing() {
     nan[0] = 1;
     nan[3..7].copy_from_slice(&f32::NAN.to_le_bytes());
     assert!(f.receive_command(&nan).is_err());
-    assert_eq!(f.controlled().body, Some(BodyCommand::GoToPosition));
+    assert_eq!(f.controlled().body, Some(NaoBody::GoToPosition));
     // A head-only packet keeps the body.
-    send(&mut f, None, Some(HeadCommand::Scan), None);
-    assert_eq!(f.controlled().body, Some(BodyCommand::GoToPosition));
-    assert_eq!(f.controlled().head, HeadCommand::Scan);
+    send(&mut f, None, Some(NaoHead::Scan), None);
+    assert_eq!(f.controlled().body, Some(NaoBody::GoToPosition));
+    assert_eq!(f.controlled().head, NaoHead::Scan);
 }
 
 #[test]
@@ -179,7 +180,7 @@ fn turn_faces_x_y_not_y_x() {
     let mut f = playing(false);
     f.place_robot(RobotId::CONTROLLED, V2::new(0.0, 0.0), 0.0);
     // Target (0, 3000): facing +y (pi/2). The quirk (y, x) would face +x.
-    send(&mut f, Some(BodyCommand::Turn), None, Some((0.0, 3000.0)));
+    send(&mut f, Some(NaoBody::Turn), None, Some((0.0, 3000.0)));
     assert!(run_until(&mut f, 5.0, |f| f.controlled().done));
     let th = f.robot(RobotId::CONTROLLED).unwrap().theta;
     assert!(
@@ -196,8 +197,8 @@ fn search_the_ball_turns_until_it_sees_it() {
     f.place_ball(V2::new(-2000.0, -300.0), V2::ZERO); // behind the robot
     send(
         &mut f,
-        Some(BodyCommand::SearchTheBall),
-        Some(HeadCommand::LookForward),
+        Some(NaoBody::SearchTheBall),
+        Some(NaoHead::LookForward),
         None,
     );
     assert!(
@@ -231,7 +232,7 @@ fn a_pass_to_the_teammate_is_completed_and_detected() {
     f.place_ball(V2::new(-1200.0, 0.0), V2::ZERO);
     // The teammate 2.5 m away, farther from the ball: supporter, it holds its position.
     f.place_robot(RobotId::AUTONOMOUS, V2::new(300.0, 2000.0), 0.0);
-    send(&mut f, Some(BodyCommand::Pass), None, None);
+    send(&mut f, Some(NaoBody::Pass), None, None);
     assert!(
         run_until(&mut f, 30.0, |f| !completed_passes(f).is_empty()),
         "no pass completed; events {:?}",
@@ -253,7 +254,7 @@ fn a_ball_touched_by_an_opponent_first_is_no_pass() {
     // The defender stands on the line of the pass.
     f.place_robot(RobotId::DEFENDER, V2::new(200.0, 0.0), 0.0);
     f.place_robot(RobotId::KEEPER, V2::new(4300.0, 2500.0), 0.0);
-    send(&mut f, Some(BodyCommand::Pass), None, None);
+    send(&mut f, Some(NaoBody::Pass), None, None);
     run_until(&mut f, 20.0, |f| {
         f.events().iter().any(|(_, e)| {
             matches!(
@@ -283,7 +284,7 @@ fn pass_without_an_active_teammate_dribbles() {
     f.place_robot(RobotId::CONTROLLED, V2::new(-1500.0, 0.0), 0.0);
     f.place_ball(V2::new(-1200.0, 0.0), V2::ZERO);
     f.knock_over(RobotId::AUTONOMOUS);
-    send(&mut f, Some(BodyCommand::Pass), None, None);
+    send(&mut f, Some(NaoBody::Pass), None, None);
     f.step(5.0);
     assert!(
         !f.events()
@@ -332,7 +333,7 @@ fn the_controlled_robot_may_not_score_directly() {
     f.place_robot(RobotId::AUTONOMOUS, V2::new(-3000.0, 2500.0), 0.0);
     f.place_ball(V2::new(2500.0, 0.0), V2::ZERO);
     f.place_robot(RobotId::CONTROLLED, V2::new(2000.0, 0.0), 0.0);
-    send(&mut f, Some(BodyCommand::Kick), None, None);
+    send(&mut f, Some(NaoBody::Kick), None, None);
     assert!(run_until(&mut f, 20.0, |f| f.game_state() == GameState::Finished));
     assert!(
         f.events()
@@ -359,7 +360,7 @@ fn a_fall_happens_and_the_robot_gets_up() {
         let y = if k % 2 == 0 { 2000.0 } else { -2000.0 };
         send(
             &mut f,
-            Some(BodyCommand::GoToPosition),
+            Some(NaoBody::GoToPosition),
             None,
             Some((-1500.0, y)),
         );
@@ -396,7 +397,7 @@ fn a_fall_happens_and_the_robot_gets_up() {
     g.place_ball(V2::new(-4000.0, 2800.0), V2::ZERO);
     send(
         &mut g,
-        Some(BodyCommand::GoToPosition),
+        Some(NaoBody::GoToPosition),
         None,
         Some((2000.0, 0.0)),
     );
@@ -522,8 +523,8 @@ fn debug_packets_every_100_ms_decode_and_fuse_to_the_true_ball() {
     assert_eq!(per_player[1], 30);
     assert_eq!(per_player[2], 30);
     let w = fusion.snapshot(f.time_s());
-    let b = w.ball.expect("both robots see the ball");
-    let err = f64::from(b.position.x_mm - 500.0).hypot(f64::from(b.position.y_mm));
+    assert!(w.ball_known, "both robots see the ball");
+    let err = f64::from(w.ball.x_mm - 500.0).hypot(f64::from(w.ball.y_mm));
     assert!(err < 60.0, "fused ball {err} mm from the truth");
     assert_eq!(w.robots.len(), 2);
     // The opponents were seen by someone.
@@ -543,8 +544,8 @@ fn same_seed_same_run_other_seed_other_run() {
             if k == 120 {
                 send(
                     &mut f,
-                    Some(BodyCommand::GoToBallAndDribble),
-                    Some(HeadCommand::LookAtTheBall),
+                    Some(NaoBody::GoToBallAndDribble),
+                    Some(NaoHead::LookAtTheBall),
                     None,
                 );
             }
@@ -571,7 +572,7 @@ fn ask_for_the_ball_makes_the_teammate_pass() {
     f.place_ball(V2::new(-500.0, 1000.0), V2::ZERO);
     f.place_robot(RobotId::AUTONOMOUS, V2::new(-900.0, 1000.0), 0.0);
     f.place_robot(RobotId::CONTROLLED, V2::new(1500.0, -1000.0), 0.0);
-    send(&mut f, Some(BodyCommand::AskForTheBall), None, None);
+    send(&mut f, Some(NaoBody::AskForTheBall), None, None);
     assert!(f.controlled().ball_requested);
     assert!(
         run_until(&mut f, 30.0, |f| !completed_passes(f).is_empty()),
@@ -593,7 +594,7 @@ fn spazza_clears_the_ball_away_from_our_goal() {
         V2::new(-3000.0, 0.0),
         std::f64::consts::PI,
     );
-    send(&mut f, Some(BodyCommand::Spazza), None, None);
+    send(&mut f, Some(NaoBody::Spazza), None, None);
     assert!(run_until(&mut f, 30.0, |f| f.controlled().done));
     f.step(10.0);
     let from_goal = (f.ball - V2::new(-4500.0, 0.0)).norm();
@@ -605,9 +606,9 @@ fn head_commands_move_the_head() {
     let mut f = playing(false);
     f.place_robot(RobotId::CONTROLLED, V2::new(0.0, -2000.0), 0.0);
     for (head, yaw) in [
-        (HeadCommand::LookLeft, 1.0),
-        (HeadCommand::LookRight, -1.0),
-        (HeadCommand::LookForward, 0.0),
+        (NaoHead::LookLeft, 1.0),
+        (NaoHead::LookRight, -1.0),
+        (NaoHead::LookForward, 0.0),
     ] {
         send(&mut f, None, Some(head), None);
         f.step(1.0);
@@ -615,7 +616,7 @@ fn head_commands_move_the_head() {
         assert!((r.head_yaw - yaw).abs() < 1e-9, "{head:?}: {}", r.head_yaw);
     }
     // Scan sweeps: the yaw takes both signs within a period.
-    send(&mut f, None, Some(HeadCommand::Scan), None);
+    send(&mut f, None, Some(NaoHead::Scan), None);
     let (mut lo, mut hi) = (0.0f64, 0.0f64);
     for _ in 0..40 {
         f.step(0.1);
@@ -697,7 +698,7 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
     f.set_game_state(GameState::Playing);
     send(
         &mut f,
-        Some(BodyCommand::GoToPosition),
+        Some(NaoBody::GoToPosition),
         None,
         Some((-1500.0, 2500.0)),
     );
@@ -729,7 +730,7 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
     assert_ne!(p0, moving, "it walked before the penalty");
     send(
         &mut f,
-        Some(BodyCommand::GoToPosition),
+        Some(NaoBody::GoToPosition),
         None,
         Some((2000.0, 0.0)),
     );

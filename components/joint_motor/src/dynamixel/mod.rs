@@ -178,8 +178,9 @@ impl JointDriver for DynamixelDriver {
                 name: s.name.clone(),
                 position,
                 velocity,
-                effort: None,
-                owner: None,
+                has_effort: false,
+                effort: 0.0,
+                owner: String::new(),
             })
             .collect();
         self.last = Some((now_s, positions));

@@ -3,7 +3,9 @@
 
 use super::*;
 use interfaces::msg::command::CommandSource;
-use interfaces::msg::nao::{FieldPoint, FieldPose, PlayerPenalty, TeamRobot, TeamStatus};
+use interfaces::msg::nao::{
+    FieldPoint, FieldPose, PlayerPenalty, PlayerRole, TeamRobot, TeamStatus,
+};
 
 fn t(s: f64) -> Duration {
     Duration::from_secs_f64(s)
@@ -25,7 +27,7 @@ fn game(state: u8) -> GameState {
 fn world(fallen: bool, mate: bool) -> NaoWorldModel {
     let r = |n: u8, x: f32, y: f32| TeamRobot {
         player_number: n,
-        role: 17 + (n == 2) as u8,
+        role: PlayerRole::from_wire(17 + (n == 2) as u8),
         pose: FieldPose {
             x_mm: x,
             y_mm: y,

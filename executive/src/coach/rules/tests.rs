@@ -1,7 +1,9 @@
 //! The coach's rules, case by case.
 #![allow(clippy::unwrap_used)]
 use super::*;
-use interfaces::msg::nao::{FieldPose, PlayerPenalty, TeamRobot, TeamStatus, TrackedObstacle};
+use interfaces::msg::nao::{
+    FieldPose, PlayerPenalty, PlayerRole, TeamRobot, TeamStatus, TrackedObstacle,
+};
 
 fn cfg() -> RulesConfig {
     RulesConfig::default()
@@ -10,7 +12,7 @@ fn cfg() -> RulesConfig {
 fn robot(n: u8, x: f32, y: f32) -> TeamRobot {
     TeamRobot {
         player_number: n,
-        role: if n == 2 { 18 } else { 17 },
+        role: PlayerRole::from_wire(if n == 2 { 18 } else { 17 }),
         pose: FieldPose {
             x_mm: x,
             y_mm: y,
