@@ -6,7 +6,8 @@
 //! `--rate`. Payload bytes and type names go out exactly as recorded, so components decode them
 //! and the headers keep their original stamps and sequence numbers.
 //!
-//! The recording's time goes out on `clock` ([`interfaces::msg::std_msgs::ClockTime`], unless
+//! The recording's time goes out on `clock` ([`interfaces::msg::std_msgs::ClockTime`]) when a
+//! component of the namespace follows it (subscribes to `clock`, `--clock bus`; unless
 //! `--no-clock`): before each message, the log time of that message, and while paced, the
 //! recorded time as it passes. Components started with `--clock bus` run their timers on it, so
 //! they take the recorded steps at any rate. Across `--loop` passes the clock keeps going
@@ -34,8 +35,8 @@ them) and their exact bytes (so headers keep their original stamps), paced as th
 received, scaled by --rate; or as fast as possible; or step by step (--step: a line on stdin,\n\
 Enter on a terminal, publishes the next N messages).\n\
 \n\
-The recording's time goes out on `clock` (--no-clock: not): components started with\n\
-`--clock bus` follow it, so their timers run on the recorded time at any rate. --sync T,...\n\
+The recording's time goes out on `clock` when a component follows it (started with\n\
+`--clock bus`; --no-clock: never), so its timers run on the recorded time at any rate. --sync T,...\n\
 names topics the replayed graph publishes itself (not replayed): the replay waits for the\n\
 graph's own message wherever the recording has one, so it never runs ahead of the graph.\n\
 \n\
@@ -81,7 +82,8 @@ pub struct Args {
     /// Print progress on stderr this often (s); 0 for never.
     #[arg(long, default_value_t = 3.0, value_name = "S")]
     pub progress_s: f64,
-    /// Do not publish the recording's time on `clock` (replay a recorded `clock` instead).
+    /// Do not publish the recording's time on `clock` (by default it is, when a component of the
+    /// namespace follows it: started with `--clock bus`).
     #[arg(long)]
     pub no_clock: bool,
     /// Topics the replayed graph publishes itself (comma-separated): not replayed; at each
@@ -123,6 +125,24 @@ impl ClockOut {
         }
         Ok(())
     }
+}
+
+/// The components of the namespace that follow the bus clock (they subscribe to `clock`).
+async fn clock_followers(bus: &interfaces::Bus) -> anyhow::Result<Vec<String>> {
+    let mut names: Vec<String> = bus
+        .graph(Duration::from_secs(2))
+        .await?
+        .into_iter()
+        .filter_map(|t| match t {
+            interfaces::liveliness::Token::Subscriber {
+                component, topic, ..
+            } if topic == interfaces::topics::CLOCK.name() => Some(component),
+            _ => None,
+        })
+        .collect();
+    names.sort();
+    names.dedup();
+    Ok(names)
 }
 
 /// Counts what the graph publishes on a `--sync` topic.
@@ -192,11 +212,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     {
         let path = args.file.clone();
         let topics = args.topics.clone();
-        let mut exclude = args.exclude.clone();
-        if !args.no_clock {
-            // The replay's own clock replaces a recorded one.
-            exclude.push(interfaces::topics::CLOCK.name().to_string());
-        }
+        let exclude = args.exclude.clone();
         let sync = args.sync.clone();
         let looping = args.looping;
         std::thread::Builder::new()
@@ -248,30 +264,6 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     } else {
         format!("at {}x the recorded rate", args.rate)
     };
-    eprintln!(
-        "replaying {} ({:.1} MB) into namespace {ns:?}, {mode}{}{}{}",
-        args.file.display(),
-        file_len as f64 / 1e6,
-        if args.looping { ", looping" } else { "" },
-        if args.no_clock {
-            ""
-        } else {
-            ", its time on `clock`"
-        },
-        if args.sync.is_empty() {
-            String::new()
-        } else {
-            format!(", in step with the graph's {}", args.sync.join(", "))
-        }
-    );
-    let mut clock = ClockOut {
-        publisher: if args.no_clock {
-            None
-        } else {
-            Some(bus.publisher(&interfaces::topics::CLOCK).await?)
-        },
-        last_ns: i64::MIN,
-    };
     let mut sync: HashMap<String, SyncTopic> = HashMap::new();
     for t in &args.sync {
         sync.insert(t.clone(), SyncTopic::declare(&bus, t).await?);
@@ -279,6 +271,36 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     let sync_timeout = Duration::from_secs_f64(args.sync_timeout_s);
     let (mut sync_waits, mut sync_waited) = (0u64, Duration::ZERO);
     tokio::time::sleep(Duration::from_secs_f64(args.wait_s.max(0.0))).await;
+    // The clock goes out when a component of the namespace follows it (`--clock bus`).
+    let followers = if args.no_clock {
+        Vec::new()
+    } else {
+        clock_followers(&bus).await?
+    };
+    let mut clock = ClockOut {
+        publisher: if followers.is_empty() {
+            None
+        } else {
+            Some(bus.publisher(&interfaces::topics::CLOCK).await?)
+        },
+        last_ns: i64::MIN,
+    };
+    eprintln!(
+        "replaying {} ({:.1} MB) into namespace {ns:?}, {mode}{}{}{}",
+        args.file.display(),
+        file_len as f64 / 1e6,
+        if args.looping { ", looping" } else { "" },
+        if followers.is_empty() {
+            String::new()
+        } else {
+            format!(", its time on `clock` for {}", followers.join(", "))
+        },
+        if args.sync.is_empty() {
+            String::new()
+        } else {
+            format!(", in step with the graph's {}", args.sync.join(", "))
+        }
+    );
 
     let mut publishers: HashMap<(String, String), Option<Outlet>> = HashMap::new();
     let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
@@ -329,7 +351,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             }
         };
         let log_time = m.log_time_ns;
-        if first_log.is_none() && passes > 0 {
+        if first_log.is_none() && passes > 0 && clock.publisher.is_some() {
             // The next pass starts a millisecond after the last one ended, on the clock.
             clock_offset = clock.last_ns.saturating_add(1_000_000) - log_time as i64;
         }
@@ -399,7 +421,11 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             }
         }
 
-        // The clock first: what the message causes happens at its time.
+        // The clock first: what the message causes happens at its time. It replaces a recorded
+        // clock.
+        if clock.publisher.is_some() && m.topic == interfaces::topics::CLOCK.name() {
+            continue;
+        }
         clock.to(clock_ns).await?;
 
         // A graph's output: wait for the graph's own.
