@@ -920,7 +920,8 @@ pub async fn start(bus: Bus, config: ServiceConfig) -> anyhow::Result<Running> {
     })
 }
 
-/// Joint states are applied at most this often (50 Hz); the ones in between are skipped.
+/// Joint states are applied at most this often by their stamps (50 Hz); the ones in between are
+/// skipped (by stamp, so a replay at any rate applies the same ones).
 pub const JOINT_STATES_MIN_INTERVAL: Duration = Duration::from_millis(20);
 
 /// Applies the measured joints of `body/joint_states` to the robot's joint edges, so that
@@ -934,18 +935,20 @@ pub async fn follow_joint_states(
     sub: interfaces::bus::Subscriber<interfaces::msg::body::JointStates>,
 ) {
     let counters = dr.bus.counters().clone();
-    let mut last: Option<std::time::Instant> = None;
+    let mut last: Option<Stamp> = None;
     let mut unknown_log = interfaces::ratelimit::RateLimiter::new(Duration::from_secs(1));
+    let min_interval = JOINT_STATES_MIN_INTERVAL.as_nanos() as u64;
     while let Ok(msg) = sub.recv().await {
-        if last.is_some_and(|t| t.elapsed() < JOINT_STATES_MIN_INTERVAL) {
-            counters.incr("dr/joint_states_skipped");
-            continue;
-        }
-        last = Some(std::time::Instant::now());
         let stamp = match msg.header.stamp_ns {
             t if t > 0 => Stamp(t as u64),
             _ => Stamp(dr.bus.clock().now_ns().max(0) as u64),
         };
+        // Thinned by the stamps, not by the arrival: a replay at any rate keeps the same ones.
+        if last.is_some_and(|l| stamp.0 >= l.0 && stamp.0 - l.0 < min_interval) {
+            counters.incr("dr/joint_states_skipped");
+            continue;
+        }
+        last = Some(stamp);
         let mut unknown: Vec<&str> = Vec::new();
         {
             let mut live = dr.live.write().await;

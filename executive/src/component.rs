@@ -18,9 +18,12 @@
 //! Calls: `body/joint_goal` (the rest postures; retried a few times while the reach component
 //! still owns the joints), `dr/propose`, `dr/get_node`.
 //!
-//! Time: the machine's `now` is the bus clock (nanoseconds since the epoch as a duration), so
-//! timers follow a replayed or virtual clock. A finished game stays up (answering the
-//! configuration service) unless `--exit-when-finished`.
+//! Time: the machine's `now` is the component clock's monotonic reading ([`interfaces::clock`]),
+//! and the loop sleeps on that clock until the machine's next timer or the tracker watchdog's
+//! deadline; so with `--clock bus` the timers, the watchdog and the camera announcements follow
+//! a replay's clock, at whatever rate it is replayed. A clock that follows the bus has no time
+//! before the first `clock` message: the game starts then. A finished game stays up (answering
+//! the configuration service) unless `--exit-when-finished`.
 //!
 //! # `--game coach`
 //!
@@ -37,7 +40,7 @@ use interfaces::msg::executive::{Configuration, ConfigurationRequest, GameLog, S
 use interfaces::msg::speech::{SayRequest, SpeakingState};
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrackState};
 use interfaces::node::Interface;
-use interfaces::{Bus, Shutdown, topics};
+use interfaces::{Bus, Clock, Moment, Shutdown, topics};
 use tokio::sync::mpsc;
 
 use crate::engine::Step;
@@ -303,9 +306,17 @@ pub(crate) fn transition_msg<A>(machine: &str, s: &Step<A>) -> StateTransition {
     }
 }
 
-/// The bus clock as the machine's time.
+/// The bus clock as the machine's time: its monotonic reading (system or virtual).
 fn bus_now(bus: &Bus) -> Duration {
-    Duration::from_nanos(u64::try_from(bus.clock().now_ns()).unwrap_or(0))
+    bus.clock().now().as_duration()
+}
+
+/// Waits on `clock` until `deadline`, or for ever when there is none.
+pub(crate) async fn sleep_until(clock: &Clock, deadline: Option<Moment>) {
+    match deadline {
+        Some(d) => clock.sleep_until(d).await,
+        None => std::future::pending().await,
+    }
 }
 
 /// A finished home request, back to the main loop for the game log.
@@ -352,7 +363,7 @@ async fn send_home(bus: Bus, goal: JointGoal, results: mpsc::Sender<HomeResult>)
             Err(e) => last = e.to_string(),
         }
         if attempt < HOME_ATTEMPTS {
-            tokio::time::sleep(HOME_RETRY).await;
+            bus.clock().sleep(HOME_RETRY).await;
         }
     }
     if results
@@ -370,23 +381,31 @@ async fn send_home(bus: Bus, goal: JointGoal, results: mpsc::Sender<HomeResult>)
 /// How long without `vision/ball` before a tracking game calls the ball lost.
 const TRACKER_SILENCE: Duration = Duration::from_millis(1500);
 
-/// Watches the tracker's heartbeat (`vision/ball` comes once per frame, found or not).
+/// Watches the tracker's heartbeat (`vision/ball` comes once per frame, found or not), on the
+/// component's clock.
 #[derive(Debug, Default)]
 struct TrackerWatch {
-    last: Option<tokio::time::Instant>,
+    last: Option<Moment>,
     reported: bool,
-    last_resend: Option<tokio::time::Instant>,
+    last_resend: Option<Moment>,
 }
 
 impl TrackerWatch {
-    fn heard(&mut self, now: tokio::time::Instant) {
+    fn heard(&mut self, now: Moment) {
         self.last = Some(now);
         self.reported = false;
     }
-    /// True once per silence longer than [`TRACKER_SILENCE`] (after the tracker was heard).
-    fn silent(&mut self, now: tokio::time::Instant) -> bool {
-        match self.last {
-            Some(t) if !self.reported && now.duration_since(t) > TRACKER_SILENCE => {
+    /// When the watchdog is due (a silence of [`TRACKER_SILENCE`] since the tracker was last
+    /// heard, not reported yet), for the loop's sleep.
+    fn deadline(&self) -> Option<Moment> {
+        self.last
+            .filter(|_| !self.reported)
+            .map(|t| t + TRACKER_SILENCE)
+    }
+    /// True once per silence of [`TRACKER_SILENCE`] or more (after the tracker was heard).
+    fn silent(&mut self, now: Moment) -> bool {
+        match self.deadline() {
+            Some(d) if now >= d => {
                 self.reported = true;
                 true
             }
@@ -394,7 +413,7 @@ impl TrackerWatch {
         }
     }
     /// At most once a second.
-    fn may_resend(&mut self, now: tokio::time::Instant) -> bool {
+    fn may_resend(&mut self, now: Moment) -> bool {
         if self
             .last_resend
             .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
@@ -412,8 +431,9 @@ impl TrackerWatch {
 #[derive(Debug, Default)]
 struct CameraWatch {
     streaming: Option<bool>,
-    /// When "cannot see" was last said; "see again" is said only after it.
-    said_lost: Option<tokio::time::Instant>,
+    /// When "cannot see" was last said (on the component's clock); "see again" is said only
+    /// after it.
+    said_lost: Option<Moment>,
     lost_pending: bool,
 }
 
@@ -430,7 +450,7 @@ impl CameraWatch {
     fn update(
         &mut self,
         s: &interfaces::msg::vision::CameraStatus,
-        now: tokio::time::Instant,
+        now: Moment,
     ) -> Option<(Option<&'static str>, String)> {
         let before = self.streaming.replace(s.streaming);
         match (before, s.streaming) {
@@ -612,17 +632,27 @@ async fn run_touch(
         settings.touch.ball_saturation,
         settings.touch.ball_diameter_m
     );
+    // A clock that follows a replay has no time before the replay's first `clock` message.
+    let clock = bus.clock().clone();
+    tokio::select! {
+        _ = shutdown.wait() => return Ok(()),
+        _ = clock.started() => {}
+    }
     let o = game.start(bus_now(&bus));
     out.emit(o).await?;
     *lock(&snapshot) = snapshot_of(&game, &mermaid);
     let mut watch = TrackerWatch::default();
     loop {
-        // Wake for the next timer; poll at least every 200 ms in case the clock is virtual.
-        let now = bus_now(&bus);
-        let sleep_for = game
-            .next_deadline()
-            .map_or(Duration::from_millis(200), |d| d.saturating_sub(now))
-            .min(Duration::from_millis(200));
+        // Wake on the clock for the machine's next timer, or the tracker watchdog's.
+        let deadline = [
+            game.next_deadline().map(Moment::from_duration),
+            watch
+                .deadline()
+                .filter(|_| game.machine().is_active(touch::state::TRACKING)),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
         let outcome = tokio::select! {
             _ = shutdown.wait() => return Ok(()),
             c = commands.recv() => {
@@ -636,8 +666,8 @@ async fn run_touch(
                 while let Some(newer) = tracks.try_recv() {
                     t = newer;
                 }
-                watch.heard(tokio::time::Instant::now());
-                if t.state == BallTrackState::Waiting && wants_tracker(&game) && watch.may_resend(tokio::time::Instant::now()) {
+                watch.heard(clock.now());
+                if t.state == BallTrackState::Waiting && wants_tracker(&game) && watch.may_resend(clock.now()) {
                     // A tracker without a target while the game needs one: it was restarted.
                     out.log_line(LogLine {
                         kind: "anomaly",
@@ -661,7 +691,7 @@ async fn run_touch(
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
             c = cameras.recv() => {
                 let c = c?;
-                if let Some((said, log)) = camera.update(&c, tokio::time::Instant::now()) {
+                if let Some((said, log)) = camera.update(&c, clock.now()) {
                     out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
                     if let Some(said) = said {
                         out.say_now(said).await?;
@@ -693,14 +723,12 @@ async fn run_touch(
                 }
                 game.advance(bus_now(&bus))
             }
-            _ = tokio::time::sleep(sleep_for) => game.advance(bus_now(&bus)),
+            _ = sleep_until(&clock, deadline) => game.advance(bus_now(&bus)),
         };
         out.emit(outcome).await?;
         // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
         // stopped): the ball is lost, said so, and searched for again once it is back.
-        if game.machine().is_active(touch::state::TRACKING)
-            && watch.silent(tokio::time::Instant::now())
-        {
+        if game.machine().is_active(touch::state::TRACKING) && watch.silent(clock.now()) {
             out.log_line(LogLine {
                 kind: "anomaly",
                 text: format!(
@@ -719,7 +747,8 @@ async fn run_touch(
         }
         *lock(&snapshot) = snapshot_of(&game, &mermaid);
         if out.finished && config.exit_when_finished {
-            // Let the last messages and the rest postures go out.
+            // Let the last messages and the rest postures go out (on the wall clock: this waits
+            // for the bus, and a replay's clock may never move again).
             tokio::time::sleep(Duration::from_millis(500)).await;
             while let Ok(h) = home_rx.try_recv() {
                 if let Err(e) = h.result {
@@ -778,9 +807,152 @@ mod tests {
         }
     }
 
+    /// The touch game's process loop on a virtual clock: its timers and the tracker watchdog
+    /// fire when the clock is moved to their deadline, never before, and never from the wall.
+    /// Every input first fires the timers due, so an input sent just before a deadline is
+    /// stepped alone and the timer's step follows when the clock reaches it: no sleeps.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn the_touch_loop_runs_its_timers_and_watchdog_on_a_virtual_clock() {
+        use interfaces::bus::BusOptions;
+        use interfaces::msg::command::{Command, CommandSource, Game, GameCommand};
+        use interfaces::msg::tracking::BallTrack;
+
+        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
+            .await
+            .unwrap();
+        let args = interfaces::ConnectArgs::to_router(
+            &endpoint,
+            &format!("unit-exec-clock-{}", std::process::id()),
+        );
+        let clock = Clock::virtual_unset();
+        let options = BusOptions {
+            announce: true,
+            clock: clock.clone(),
+            ..Default::default()
+        };
+        let exec_bus = Bus::open_with(&args, "executive", options).await.unwrap();
+        let bus = Bus::open(&args, "unit-test").await.unwrap();
+        let steps = bus
+            .subscriber(&topics::EXECUTIVE_TRANSITIONS)
+            .await
+            .unwrap();
+        let commands = bus.publisher(&topics::GAME_COMMAND).await.unwrap();
+        let events = bus.publisher(&topics::VISION_BALL_EVENTS).await.unwrap();
+        let tracks = bus.publisher(&topics::VISION_BALL).await.unwrap();
+        let config = Config {
+            game: GameKind::Touch,
+            settings: None,
+            print_diagram: false,
+            print_dot: false,
+            exit_when_finished: false,
+        };
+        let (stop, shutdown) = Shutdown::new();
+        let exec = tokio::spawn(run_touch(exec_bus, config, Settings::default(), shutdown));
+        let next = || async {
+            let t = tokio::time::timeout(Duration::from_secs(20), steps.recv())
+                .await
+                .expect("a step within 20 s")
+                .unwrap();
+            (t.event, t.active)
+        };
+        let command = |c: Command| {
+            let commands = &commands;
+            async move {
+                let mut m = GameCommand {
+                    game: Game::Touch,
+                    command: c,
+                    source: CommandSource::Panel,
+                    text: c.phrase().into(),
+                    confidence: 1.0,
+                    ..Default::default()
+                };
+                commands.publish(&mut m).await.unwrap();
+            }
+        };
+        let event = |kind: BallEventKind| {
+            let events = &events;
+            async move {
+                let mut e = BallEvent {
+                    kind,
+                    ..Default::default()
+                };
+                events.publish(&mut e).await.unwrap();
+            }
+        };
+        // The subscriptions meet before the game starts: it starts once the clock has a time.
+        interfaces::Clock::system()
+            .sleep(Duration::from_millis(500))
+            .await;
+        clock.set_ns(1_700_000_000_000_000_000);
+        let s = next().await;
+        assert_eq!(s.1, [touch::state::WAITING]);
+        command(Command::Play).await;
+        assert_eq!(next().await.0, "command:play");
+        command(Command::ScanBall).await;
+        let (e, active) = next().await;
+        assert_eq!(e, "command:scan_ball");
+        assert!(
+            active.iter().any(|a| a == touch::state::LOOKING),
+            "{active:?}"
+        );
+
+        // The scan's move time-out (3 s): not at 2.999 s, at 3 s.
+        clock.advance(Duration::from_millis(2_999));
+        command(Command::Greet).await;
+        assert_eq!(
+            next().await.0,
+            "command:greet",
+            "no timer before its deadline"
+        );
+        clock.advance(Duration::from_millis(1));
+        assert_eq!(next().await.0, "timer:scan");
+
+        // The tracker watchdog (1.5 s without a track while tracking): the clock's, too.
+        event(BallEventKind::Detected).await;
+        assert_eq!(next().await.0, "ball:detected");
+        event(BallEventKind::OutOfView).await;
+        assert_eq!(next().await.0, "ball:out_of_view");
+        let mut t = BallTrack {
+            found: true,
+            state: BallTrackState::Tracking,
+            has_centre_m: true,
+            centre_m: [0.0, 0.0, 0.8],
+            ..Default::default()
+        };
+        tracks.publish(&mut t).await.unwrap();
+        let (e, active) = next().await;
+        assert_eq!(e, "ball:in_view", "the track was heard at this time");
+        assert!(
+            active.iter().any(|a| a == touch::state::TRACKING),
+            "{active:?}"
+        );
+        clock.advance(Duration::from_millis(1_499));
+        command(Command::Greet).await;
+        assert_eq!(
+            next().await.0,
+            "command:greet",
+            "the tracker is not silent yet"
+        );
+        clock.advance(Duration::from_millis(1));
+        let (e, active) = next().await;
+        assert_eq!(e, "ball:lost", "silent for 1.5 s on the clock");
+        assert!(
+            active.iter().any(|a| a == touch::state::LOOKING),
+            "{active:?}"
+        );
+
+        // A jump of a minute: every move time-out of the scan, each at its own deadline.
+        clock.advance(Duration::from_secs(60));
+        for i in 0..20 {
+            assert_eq!(next().await.0, "timer:scan", "time-out #{i} of 20");
+        }
+        stop.send(true).unwrap();
+        exec.await.unwrap().unwrap();
+    }
+
     #[test]
     fn the_robot_says_once_when_its_camera_stops_and_once_when_it_is_back() {
-        let t0 = tokio::time::Instant::now();
+        let t0 = Moment::from_duration(Duration::from_secs(1_000));
         let at = |s: u64| t0 + Duration::from_secs(s);
         let mut w = CameraWatch::default();
         assert_eq!(

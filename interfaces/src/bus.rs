@@ -420,6 +420,53 @@ impl Bus {
         })
     }
 
+    /// Set this bus' (virtual) clock from the `clock` topic for as long as the returned handle
+    /// lives. Each message moves the clock in zenoh's receive callback, before any later sample
+    /// is queued for a subscriber: a message that arrives after `clock` says T (a replay
+    /// publishes the clock before the messages of that time) finds the clock at T or later. A
+    /// payload that does not decode is counted like a subscriber's (`decode_errors/clock`).
+    pub async fn follow_clock(&self) -> Result<ClockFollower, BusError> {
+        use crate::msg::std_msgs::ClockTime;
+        let name = crate::topics::CLOCK.name();
+        let clock = self.inner.clock.clone();
+        let errors = self
+            .inner
+            .counters
+            .counter(&format!("decode_errors/{name}"));
+        let limiter = Mutex::new(RateLimiter::new(Duration::from_secs(1)));
+        let inner = self
+            .inner
+            .session
+            .declare_subscriber(self.topic_key(name))
+            .callback(move |sample| {
+                match codec::decode::<ClockTime>(&sample.payload().to_bytes(), ClockTime::TYPE_NAME)
+                {
+                    Ok(t) => clock.set_ns(t.time_ns),
+                    Err(e) => {
+                        let n = errors.fetch_add(1, Ordering::Relaxed) + 1;
+                        let mut l = limiter.lock().unwrap_or_else(|p| p.into_inner());
+                        if let Some(suppressed) = l.allow(Instant::now()) {
+                            tracing::warn!(total = n, suppressed, "a bad clock message: {e}");
+                        }
+                    }
+                }
+            })
+            .await
+            .map_err(zerr(format!("subscribing to {name}")))?;
+        let token = self
+            .token(liveliness::subscriber_key(
+                self.namespace(),
+                self.component(),
+                ClockTime::TYPE_NAME,
+                name,
+            ))
+            .await?;
+        Ok(ClockFollower {
+            _inner: inner,
+            _token: token,
+        })
+    }
+
     /// Serve `service`: every request is decoded and handed to `handler`, whose result (or typed
     /// error) goes back to the caller. A request that does not decode gets a `BadRequest` reply.
     pub async fn serve<Req, Rep, F, Fut>(
@@ -733,6 +780,18 @@ impl Payload {
             Payload::InPlace(z) => z.clone(),
             Payload::Gathered(v) => ZBytes::from(v.clone()),
         }
+    }
+}
+
+/// The subscription that moves a bus' clock (see [`Bus::follow_clock`]); dropping it stops.
+pub struct ClockFollower {
+    _inner: zenoh::pubsub::Subscriber<()>,
+    _token: LivelinessToken,
+}
+
+impl std::fmt::Debug for ClockFollower {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ClockFollower")
     }
 }
 
@@ -1095,6 +1154,59 @@ mod tests {
             Some(&frames.shm_received())
         );
         assert!(frames.try_recv_borrowed().is_none());
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_bus_clock_is_moved_by_the_clock_topic_before_the_messages_after_it() {
+        use crate::msg::std_msgs::{ClockTime, Text};
+        let (router, endpoint) = crate::router::open_router("tcp/127.0.0.1:0").await.unwrap();
+        let ns = format!("unit-clock-{}", std::process::id());
+        let args = ConnectArgs::to_router(&endpoint, &ns);
+        let a = Bus::open(&args, "unit-replay").await.unwrap();
+        let options = BusOptions {
+            announce: true,
+            clock: Clock::virtual_unset(),
+            ..Default::default()
+        };
+        let b = Bus::open_with(&args, "unit-follower", options)
+            .await
+            .unwrap();
+        let _follow = b.follow_clock().await.unwrap();
+        let text = b.subscriber(&topics::CHATTER).await.unwrap();
+        let clock = a.publisher(&topics::CLOCK).await.unwrap();
+        let chatter = a.publisher(&topics::CHATTER).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        assert!(!b.clock().is_started());
+        for i in 1..=50i64 {
+            let t = 1_700_000_000_000_000_000 + i * 1_000_000;
+            clock
+                .publish(&mut ClockTime {
+                    time_ns: t,
+                    ..Default::default()
+                })
+                .await
+                .unwrap();
+            chatter
+                .publish(&mut Text {
+                    text: t.to_string(),
+                    ..Default::default()
+                })
+                .await
+                .unwrap();
+        }
+        for _ in 1..=50 {
+            let m = tokio::time::timeout(Duration::from_secs(10), text.recv())
+                .await
+                .unwrap()
+                .unwrap();
+            let t: i64 = m.text.parse().unwrap();
+            assert!(
+                b.clock().now_ns() >= t,
+                "a message sent after the clock said {t} finds the clock there"
+            );
+        }
+        assert_eq!(b.clock().now_ns(), 1_700_000_000_050_000_000);
+        drop(router);
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

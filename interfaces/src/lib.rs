@@ -11,7 +11,8 @@
 //! - **Liveliness tokens** announce every component, publisher, subscriber and service with its
 //!   type name ([`liveliness`]), so tools see a running graph with no opt-in.
 //! - **Headers**: every message starts with a [`Header`] (stamp, sequence number, frame), stamped
-//!   from the component's [`Clock`], which a replay can drive.
+//!   from the component's [`Clock`] ([`clock`]): the system's, or a virtual one that a test or,
+//!   with `--clock bus`, a replay drives; timers and time-outs wait on it too.
 //! - **Connection flags**: [`args::ConnectArgs`] is the one set of flags of every binary
 //!   (`--namespace`, `--connect`, `--listen`, `--config`); multicast scouting is off.
 //! - **Components** run through [`node::run`], which wires logging, signals, liveliness and
@@ -19,6 +20,7 @@
 
 pub mod args;
 pub mod bus;
+pub mod clock;
 pub mod codec;
 pub mod header;
 pub mod liveliness;
@@ -31,7 +33,8 @@ pub mod topics;
 
 pub use args::ConnectArgs;
 pub use bus::{Bus, BusError, CallError, ErrorCode, Publisher, Received, ServiceError, Subscriber};
-pub use header::{Clock, Header};
+pub use clock::{Clock, Moment};
+pub use header::Header;
 pub use msg::{Borrowable, Message};
 pub use node::{Interface, NodeArgs, Shutdown};
 pub use topic::{Service, Topic};

@@ -7,6 +7,8 @@
 //!   reads to match inputs with outputs across a graph);
 //! - sets up logging (`RUST_LOG`, default `info`), with the component's name on every line;
 //! - joins the bus and declares the component's liveliness token;
+//! - gives the bus its clock: the system's, or with `--clock bus` a virtual clock set by the
+//!   `clock` topic (a replay's time), which the component's timers and stamps then follow;
 //! - publishes the bus counters on `diagnostics` once a second;
 //! - turns SIGTERM and Ctrl-C into a [`Shutdown`] the component's code awaits;
 //! - exits 0 on a clean return, 1 with the error's whole cause chain otherwise.
@@ -23,7 +25,18 @@ use std::process::ExitCode;
 use std::time::Duration;
 use tokio::sync::watch;
 
-/// Flags every component accepts: the connection flags, and `--describe`.
+/// Where a component takes its time from (`--clock`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ClockSource {
+    /// The system's clocks.
+    #[default]
+    System,
+    /// The `clock` topic (a replay's time, see [`crate::clock`]): a virtual clock that stands
+    /// still until the first `clock` message and moves only with it.
+    Bus,
+}
+
+/// Flags every component accepts: the connection flags, `--clock`, `--name` and `--describe`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct NodeArgs {
     #[command(flatten)]
@@ -35,6 +48,11 @@ pub struct NodeArgs {
     /// the manifest's component name.
     #[arg(long, env = "ROBOCOG_COMPONENT")]
     pub name: Option<String>,
+    /// Where the component's time comes from: `system`, or `bus` to follow the `clock` topic that
+    /// `robocog replay` publishes (timers, time-outs and stamps then run on the recording's time,
+    /// at whatever rate it is replayed).
+    #[arg(long, env = "ROBOCOG_CLOCK", value_enum, default_value_t = ClockSource::System)]
+    pub clock: ClockSource,
 }
 
 /// One topic or service end of a component.
@@ -218,6 +236,10 @@ where
     F: FnOnce(Bus, Shutdown) -> Fut,
     Fut: Future<Output = anyhow::Result<()>>,
 {
+    let interface = match args.clock {
+        ClockSource::System => interface,
+        ClockSource::Bus => interface.subscribes(&crate::topics::CLOCK),
+    };
     if args.describe {
         match serde_json::to_string_pretty(&interface) {
             Ok(s) => {
@@ -252,10 +274,23 @@ where
         let options = BusOptions {
             announce: true,
             ready_after_services: interface.serves.iter().map(|p| p.name.clone()).collect(),
-            clock: Clock::System,
+            clock: match args.clock {
+                ClockSource::System => Clock::system(),
+                ClockSource::Bus => Clock::virtual_unset(),
+            },
         };
         let bus = Bus::open_with(&args.connect, &name, options).await?;
         tracing::info!(namespace = bus.namespace(), "{name} joined the bus");
+        let _clock = match args.clock {
+            ClockSource::System => None,
+            ClockSource::Bus => {
+                tracing::info!(
+                    "following the bus clock (topic {})",
+                    crate::topics::CLOCK.name()
+                );
+                Some(bus.follow_clock().await?)
+            }
+        };
         let (tx, shutdown) = Shutdown::new();
         tokio::spawn(async move {
             wait_for_signal().await;

@@ -6,6 +6,9 @@ use crate::topic::{Service, Topic};
 /// Each component's counters (decode failures, drops by reason), about once a second.
 pub const DIAGNOSTICS: Topic<Diagnostics> = Topic::new("diagnostics");
 
+/// A replay's time: components started with `--clock bus` follow it (see [`crate::clock`]).
+pub const CLOCK: Topic<std_msgs::ClockTime> = Topic::new("clock");
+
 /// Free text, for fixtures and demos.
 pub const CHATTER: Topic<std_msgs::Text> = Topic::new("chatter");
 /// An echo service (fixtures, health checks): replies with the request's text.

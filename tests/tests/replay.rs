@@ -13,35 +13,40 @@
 //!
 //! # What is replayed, and into what
 //!
-//! Everything but what the replay graph publishes itself ([`REPLAY_GRAPH_OUTPUTS`]), at the
-//! recorded rate: the frames, the measured joints (the DR follows them, so the tracker's
-//! `dr/transform` at a frame's stamp is the recorded pose), the person's commands, the reach
-//! statuses and the speech events. The tracker tracks the recorded frames again, with the target
-//! the replayed Executive sends it; the Executive plays the game again from the replayed
-//! commands and its own tracker's tracks and events.
+//! Everything but what the replay graph publishes itself ([`REPLAY_GRAPH_OUTPUTS`]): the
+//! frames, the measured joints (the DR follows them, so the tracker's `dr/transform` at a frame's
+//! stamp is the recorded pose), the person's commands, the reach statuses and the speech events.
+//! The tracker tracks the recorded frames again, with the target the replayed Executive sends
+//! it; the Executive plays the game again from the replayed commands and its own tracker's tracks
+//! and events. The graph runs on the replay's clock (`--clock bus`: the recording's time, which
+//! `robocog replay` publishes on `clock`). Three replays, each into a fresh graph: at the
+//! recorded rate (the README's command); at 4x and as fast as possible, both with
+//! `--sync` [`SYNC`] (the replay waits for the graph's own track, event, target or step wherever
+//! the recording has one, so it never runs ahead of the tracker or the Executive).
 //!
 //! # What must be identical, and why it can be
 //!
-//! - **The Executive's steps**: every `executive/transitions` message, in order, compared on
-//!   (step number, event, states exited, states entered, active states). The tracker runs on
-//!   its frames' stamps, so its events come from the same frames. The Executive's timers (the
-//!   scan's 0.3 s hold on a point the neck reached and its 3 s move time-out, courtesy delay
-//!   5 s, homing 2 s, the tracker watchdog 1.5 s) run on the wall clock, and a replay at the
-//!   recorded rate keeps the recorded gaps within a few milliseconds, so a timer and an input
-//!   keep their order unless they came within milliseconds of each other. That is the one timing-dependent part, and the scenario keeps it away: no command
-//!   races the courtesy delay (no "you touched it"), "quit the game" comes 3 s after homing
-//!   started (the homing timer is 2 s), and the closest race is a scan step and the detection it
-//!   causes (the head moves on to the next scan point and the ball comes into view; with the
-//!   ball where the scan looks first it is seen during the first turn, before any scan timer).
-//!   The test prints that margin, and a divergence's message repeats it. The reach statuses
-//!   carry the goal ids the live Executive numbered; the replayed one numbers its goals the same
-//!   way (a counter, one per gaze or reach goal), so with the same steps the same statuses mean
-//!   the same thing to it (the neck's `reached` moves the scan on, as it did live).
-//! - **The tracker's output**: every track of a replayed frame is compared with the recorded
-//!   track of the same frame (same stamp): same state and found flag, the camera-frame centre
-//!   within [`CAMERA_TOLERANCE_M`], the world centre within [`WORLD_TOLERANCE_M`] (the DR applies
-//!   joint states at most every 20 ms by the wall clock, so the live and replayed DRs may
-//!   interpolate the head's pose from different samples), and the same ball events.
+//! - **The Executive's steps**, in all three: every `executive/transitions` message, in order,
+//!   compared on (step number, event, states exited, states entered, active states). The tracker
+//!   runs on its frames' stamps, so its events come from the same frames. The Executive's timers
+//!   (the scan's 0.3 s hold on a point the neck reached and its 3 s move time-out, courtesy delay
+//!   5 s, homing 2 s, the tracker watchdog 1.5 s) run on the replay's clock, which is at each
+//!   replayed message's recorded time when the message arrives, and every input first fires the
+//!   timers due: so a timer and an input keep their recorded order at any rate, unless they came
+//!   within the Executive's own reaction time (milliseconds) of each other. The scenario keeps
+//!   that away: no command races the courtesy delay (no "you touched it"), "quit the game" comes
+//!   3 s after homing started (the homing timer is 2 s), and the closest race is a scan step and
+//!   the detection it causes (the head moves on to the next scan point and the ball comes into
+//!   view; with the ball where the scan looks first it is seen during the first turn, before any
+//!   scan timer). The test prints that margin, and a divergence's message repeats it. The reach
+//!   statuses carry the goal ids the live Executive numbered; the replayed one numbers its goals
+//!   the same way (a counter, one per gaze or reach goal), so with the same steps the same
+//!   statuses mean the same thing to it (the neck's `reached` moves the scan on, as it did live).
+//! - **The tracker's output**, at the recorded rate: every track of a replayed frame is compared
+//!   with the recorded track of the same frame (same stamp): same state and found flag, the
+//!   camera-frame centre within [`CAMERA_TOLERANCE_M`], the world centre within
+//!   [`WORLD_TOLERANCE_M`] (the DR interpolates the head's pose at the frame's stamp from the
+//!   joint states it has applied by the time the tracker asks), and the same ball events.
 //!
 //! A difference fails with the first divergence and the sequences around it.
 
@@ -61,6 +66,11 @@ const CAMERA_FPS: &str = "5";
 /// What `launch/touch_replay.toml` publishes itself, left out of the replay.
 const REPLAY_GRAPH_OUTPUTS: &str = "executive/transitions,executive/log,speech/say,\
 vision/ball_target,body/reach,vision/ball,vision/ball_events,dr/changes,diagnostics";
+
+/// The replay graph's outputs that the others act on, which a faster replay waits for: the
+/// tracker's tracks and events (the Executive's inputs), the Executive's target (the tracker's)
+/// and its steps (which every timer's and input's effect is).
+const SYNC: &str = "vision/ball,vision/ball_events,vision/ball_target,executive/transitions";
 
 /// The tracker's centre in the camera frame: the same frames give the same pixels.
 const CAMERA_TOLERANCE_M: f64 = 0.001;
@@ -337,71 +347,40 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
     );
     drop(msgs);
 
-    // 2. The replay graph, watched from before its Executive starts (its first step is its own).
-    let ns = unique_namespace("touchreplay");
-    let graph = Launch::start(&manifest, &ns, &[]);
-    let bus = Bus::open(&graph.connect_args(), "test-replay")
-        .await
-        .unwrap();
-    let steps = collect(
-        bus.subscriber(&topics::EXECUTIVE_TRANSITIONS)
-            .await
-            .unwrap(),
-    );
-    let tracks = collect(bus.subscriber(&topics::VISION_BALL).await.unwrap());
-    let events = collect(bus.subscriber(&topics::VISION_BALL_EVENTS).await.unwrap());
-    graph
-        .lines
-        .wait_for("the executive", Duration::from_secs(60), |l| {
-            l.contains("executive is up")
-        });
+    // 2. The recording into a fresh replay graph, at the recorded rate, as the README says.
+    let replayed = replay_into_a_fresh_graph(&manifest, &file, &[], span_s, rec_steps.len()).await;
+    let replay_s = replayed.wall_s;
 
-    // 3. The recording into it, at the recorded rate.
-    let args: Vec<String> = vec![
-        "replay".into(),
-        file.display().to_string(),
-        "--exclude".into(),
-        REPLAY_GRAPH_OUTPUTS.into(),
-        "--namespace".into(),
-        ns.clone(),
-        "--connect".into(),
-        graph.endpoint.clone(),
-        "--progress-s".into(),
-        "0".into(),
-    ];
-    let replay_started = Instant::now();
-    let out = tokio::task::block_in_place(|| {
-        run(
-            &bin("robocog"),
-            &args,
-            Duration::from_secs_f64(span_s + 120.0),
-        )
-    });
-    let replay_s = replay_started.elapsed().as_secs_f64();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "the replay failed:\n{err}");
-    // The last step follows the last input by the machine's own reaction time only; a replay
-    // that took fewer steps is reported below with its first divergence.
-    let until = Instant::now() + Duration::from_secs(10);
-    while steps.lock().unwrap().len() < rec_steps.len() && Instant::now() < until {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    // 3. The Executive took the recorded steps, exactly.
+    let got_steps: Vec<StepKey> = replayed.steps.iter().map(key).collect();
+    assert_same_steps("at the recorded rate", &rec_steps, &replayed, &race);
 
-    // 4. The Executive took the recorded steps, exactly.
-    let got_steps: Vec<StepKey> = steps.lock().unwrap().iter().map(key).collect();
-    if let Some(at) = first_divergence(&rec_steps, &got_steps) {
-        panic!(
-            "the replayed Executive diverged at step #{at} ({} recorded, {} replayed):\n{}\n{race}\nreplay graph output:\n{}",
-            rec_steps.len(),
-            got_steps.len(),
-            around(&rec_steps, &got_steps, at, show),
-            graph.lines.all().join("\n")
+    // 4. Faster: at 4x, and as fast as possible, the replay keeping step with the graph (it waits
+    // for the tracker's tracks and the Executive's steps where the recording has them). On the
+    // replay's clock the timers keep their recorded order.
+    for (what, mode) in [
+        ("at 4x", &["--rate", "4"][..]),
+        ("as fast as possible", &["--as-fast-as-possible"][..]),
+    ] {
+        let mut args = mode.to_vec();
+        args.extend(["--sync", SYNC]);
+        let fast =
+            replay_into_a_fresh_graph(&manifest, &file, &args, span_s, rec_steps.len()).await;
+        assert_same_steps(what, &rec_steps, &fast, &race);
+        eprintln!(
+            "replay {what}: {:.1} s for {span_s:.1} s recorded; {} steps identical; {}",
+            fast.wall_s,
+            fast.steps.len(),
+            fast.stderr
+                .lines()
+                .find(|l| l.contains("waited for the graph"))
+                .unwrap_or("")
+                .trim()
         );
     }
 
-    // 5. The tracker found the ball in the same frames, at the same places.
-    let got_tracks = tracks.lock().unwrap().clone();
+    // 5. At the recorded rate, the tracker found the ball in the same frames, at the same places.
+    let got_tracks = replayed.tracks.clone();
     let mut compared = 0usize;
     let (mut worst_cam, mut worst_world) = (0.0f64, 0.0f64);
     for t in &got_tracks {
@@ -455,9 +434,8 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
         worst_world <= WORLD_TOLERANCE_M,
         "world centres differ by up to {worst_world} m"
     );
-    let got_events: Vec<(u64, String)> = events
-        .lock()
-        .unwrap()
+    let got_events: Vec<(u64, String)> = replayed
+        .events
         .iter()
         .map(|e| (e.frame_seq, format!("{:?}", e.kind)))
         .collect();
@@ -467,5 +445,105 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
             around(&rec_events, &got_events, at, |e| format!("{e:?}"))
         );
     }
+}
+
+/// What one replay into a fresh graph gave.
+struct Replayed {
+    steps: Vec<StateTransition>,
+    tracks: Vec<BallTrack>,
+    events: Vec<BallEvent>,
+    /// How long `robocog replay` took (wall clock).
+    wall_s: f64,
+    /// The replay's stderr (its summary).
+    stderr: String,
+    /// The replay graph's output, for a failure message.
+    graph_output: String,
+}
+
+/// Replays `file` with `mode` (the pacing flags) into a fresh `launch/touch_replay.toml` graph,
+/// watched from before its Executive starts (its first step is its own), and collects what the
+/// graph published. Waits (bounded) for `expected_steps` steps after the replay ended.
+async fn replay_into_a_fresh_graph(
+    manifest: &Path,
+    file: &Path,
+    mode: &[&str],
+    span_s: f64,
+    expected_steps: usize,
+) -> Replayed {
+    let ns = unique_namespace("touchreplay");
+    let graph = Launch::start(manifest, &ns, &[]);
+    let bus = Bus::open(&graph.connect_args(), "test-replay")
+        .await
+        .unwrap();
+    let steps = collect(
+        bus.subscriber(&topics::EXECUTIVE_TRANSITIONS)
+            .await
+            .unwrap(),
+    );
+    let tracks = collect(bus.subscriber(&topics::VISION_BALL).await.unwrap());
+    let events = collect(bus.subscriber(&topics::VISION_BALL_EVENTS).await.unwrap());
+    graph
+        .lines
+        .wait_for("the executive", Duration::from_secs(60), |l| {
+            l.contains("executive is up")
+        });
+    let mut args: Vec<String> = vec![
+        "replay".into(),
+        file.display().to_string(),
+        "--exclude".into(),
+        REPLAY_GRAPH_OUTPUTS.into(),
+        "--namespace".into(),
+        ns.clone(),
+        "--connect".into(),
+        graph.endpoint.clone(),
+        "--progress-s".into(),
+        "0".into(),
+    ];
+    args.extend(mode.iter().map(|a| a.to_string()));
+    let replay_started = Instant::now();
+    let out = tokio::task::block_in_place(|| {
+        run(
+            &bin("robocog"),
+            &args,
+            Duration::from_secs_f64(span_s + 120.0),
+        )
+    });
+    let wall_s = replay_started.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "the replay ({mode:?}) failed:\n{stderr}"
+    );
+    // The last step follows the last input by the machine's own reaction time only; a replay
+    // that took fewer steps is reported with its first divergence.
+    let until = Instant::now() + Duration::from_secs(10);
+    while steps.lock().unwrap().len() < expected_steps && Instant::now() < until {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let replayed = Replayed {
+        steps: steps.lock().unwrap().clone(),
+        tracks: tracks.lock().unwrap().clone(),
+        events: events.lock().unwrap().clone(),
+        wall_s,
+        stderr,
+        graph_output: graph.lines.all().join("\n"),
+    };
     drop(graph);
+    replayed
+}
+
+/// Fails with the first divergence when the replayed Executive did not take the recorded steps.
+fn assert_same_steps(what: &str, recorded: &[StepKey], replayed: &Replayed, race: &str) {
+    let got: Vec<StepKey> = replayed.steps.iter().map(key).collect();
+    if let Some(at) = first_divergence(recorded, &got) {
+        panic!(
+            "the Executive replayed {what} diverged at step #{at} ({} recorded, {} replayed):\n{}\n{race}\nreplay:\n{}\nreplay graph output:\n{}",
+            recorded.len(),
+            got.len(),
+            around(recorded, &got, at, show),
+            replayed.stderr,
+            replayed.graph_output
+        );
+    }
 }

@@ -11,7 +11,7 @@
 //! while one is in flight is not sent, and counted).
 //!
 //! Failure handling: the DR missing (no server) or not answering within the time-out makes the
-//! link rest for a while (`retry`): tracks are published in the camera frame only
+//! link rest for a while (`retry`, on the component's clock): tracks are published in the camera frame only
 //! (`has_centre_world = false`), counted (`dr_unavailable`) and logged at most once a second.
 //! A DR that answers with an error (an unknown frame, a stamp older than its history) costs that
 //! one track its world position (`dr_transform_errors`). Updates that fail are counted
@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use interfaces::msg::dr::{PoseUpdate, Transform, TransformRequest, UpdateRequest};
 use interfaces::msg::tracking::BallTrack;
 use interfaces::ratelimit::RateLimiter;
-use interfaces::{Bus, CallError, Header, topics};
+use interfaces::{Bus, CallError, Header, Moment, topics};
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 
 /// How the tracker uses the DR.
@@ -88,7 +88,8 @@ pub fn should_update(track: &BallTrack, min_confidence: f64) -> bool {
 pub struct DrLink {
     bus: Bus,
     options: DrOptions,
-    resting_until: Option<Instant>,
+    /// Until when (on the component's clock) the DR is not asked, after it did not answer.
+    resting_until: Option<Moment>,
     update_in_flight: Arc<AtomicBool>,
     warn_limit: RateLimiter,
     update_warn_limit: Arc<std::sync::Mutex<RateLimiter>>,
@@ -142,7 +143,7 @@ impl DrLink {
         }
         let counters = self.bus.counters().clone();
         if let Some(until) = self.resting_until {
-            if Instant::now() < until {
+            if self.bus.clock().now() < until {
                 counters.incr("dr_unavailable");
                 return;
             }
@@ -167,7 +168,7 @@ impl DrLink {
             (Err(e), _) | (_, Err(e)) => match e {
                 CallError::NoServer(_) | CallError::Timeout { .. } | CallError::Zenoh(_) => {
                     counters.incr("dr_unavailable");
-                    self.resting_until = Some(Instant::now() + self.options.retry);
+                    self.resting_until = Some(self.bus.clock().now() + self.options.retry);
                     self.warn(format_args!(
                         "no deep representation ({e}): publishing the ball in the camera frame \
                          only, asking again in {:.1} s",

@@ -44,6 +44,8 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use interfaces::Moment;
+
 use anyhow::Context;
 use interfaces::bus::{CallError, Publisher};
 use interfaces::msg::body::{
@@ -244,11 +246,11 @@ fn xyz(v: &Vector3<f64>) -> [f64; 3] {
 #[derive(Debug)]
 struct Plan {
     trajectory: Trajectory,
-    started: Instant,
+    started: Moment,
     residual_m: f64,
     reached: bool,
     settle_failed: bool,
-    last_sent: Option<Instant>,
+    last_sent: Option<Moment>,
 }
 
 /// The active goal of one body part.
@@ -265,10 +267,10 @@ struct Active {
     target_world: Isometry3<f64>,
     world_t_root: Isometry3<f64>,
     plan: Option<Plan>,
-    last_follow: Instant,
+    last_follow: Moment,
     /// Set while the goal waits for fresh joint states (just after start, or joint_motor away):
     /// it fails after [`STALE_JOINT_STATES_S`].
-    waiting_since: Option<Instant>,
+    waiting_since: Option<Moment>,
 }
 
 /// Why a goal could not run.
@@ -286,7 +288,7 @@ struct Ik {
     /// `None` only while a solve runs on the blocking pool.
     body: Option<BodyIk>,
     measured: HashMap<String, f64>,
-    measured_at: Option<Instant>,
+    measured_at: Option<Moment>,
     parts: HashMap<String, Active>,
     status: Publisher<ReachStatus>,
     timeout: Duration,
@@ -456,7 +458,7 @@ impl Ik {
             target_world: Isometry3::identity(),
             world_t_root: Isometry3::identity(),
             plan: None,
-            last_follow: Instant::now(),
+            last_follow: self.bus.clock().now(),
             waiting_since: None,
         };
         tracing::info!(
@@ -478,7 +480,7 @@ impl Ik {
         }
         if !self.fresh() {
             // Solved by a tick once joint states arrive (or failed after a while).
-            active.waiting_since = Some(Instant::now());
+            active.waiting_since = Some(self.bus.clock().now());
             self.parts.insert(active.goal.body_part.clone(), active);
             return;
         }
@@ -512,7 +514,7 @@ impl Ik {
     /// Returns whether the goal stays active.
     fn fresh(&self) -> bool {
         self.measured_at
-            .is_some_and(|t| t.elapsed().as_secs_f64() < STALE_JOINT_STATES_S)
+            .is_some_and(|t| self.bus.clock().elapsed(t).as_secs_f64() < STALE_JOINT_STATES_S)
     }
 
     async fn solve(&mut self, a: &mut Active) -> bool {
@@ -632,7 +634,7 @@ impl Ik {
         );
         a.plan = Some(Plan {
             trajectory,
-            started: Instant::now(),
+            started: self.bus.clock().now(),
             residual_m,
             reached: false,
             settle_failed: false,
@@ -682,7 +684,7 @@ impl Ik {
     }
 
     async fn step(&mut self, a: &mut Active) -> Result<bool, Failure> {
-        let now = Instant::now();
+        let now = self.bus.clock().now();
         if let Some(since) = a.waiting_since {
             if self.fresh() {
                 a.waiting_since = None;
@@ -793,7 +795,7 @@ impl Ik {
                 }
             }
         }
-        self.measured_at = Some(Instant::now());
+        self.measured_at = Some(self.bus.clock().now());
     }
 }
 
@@ -806,8 +808,11 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let states = bus.subscriber(&topics::BODY_JOINT_STATES).await?;
     let goals = bus.subscriber(&topics::BODY_REACH).await?;
     let status = bus.publisher(&topics::BODY_REACH_STATUS).await?;
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.stream_hz));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    // The stream and every time of a goal's lifecycle (trajectory time, hold, stale joint
+    // states, follow, settle) run on the component's clock: a replay's with `--clock bus`.
+    let mut tick = bus
+        .clock()
+        .interval(Duration::from_secs_f64(1.0 / config.stream_hz));
     tracing::info!(
         urdf = %urdf.display(),
         "body_inverse_kinematics ready: goals on {}, status on {}",

@@ -10,7 +10,6 @@ use interfaces::topics;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use tokio::time::Instant;
 
 /// Confidence handling and the "Did you say ...?" loop.
 #[derive(Debug, Parser)]
@@ -81,11 +80,13 @@ fn main() -> ExitCode {
         let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
         let commands = bus.publisher(&topics::GAME_COMMAND).await?;
         let say = bus.publisher(&topics::SPEECH_SAY).await?;
-        let t0 = Instant::now();
-        let mut tick = tokio::time::interval(Duration::from_millis(100));
+        // Time is the component's clock (the system's, or a replay's with `--clock bus`): the
+        // answer time-out and the echo guard run on it.
+        let clock = bus.clock().clone();
+        let mut tick = clock.interval(Duration::from_millis(100));
         let mut say_id: u64 = (std::process::id() as u64) << 32;
         loop {
-            let now = || t0.elapsed().as_secs_f64();
+            let now = || clock.now().as_duration().as_secs_f64();
             let actions = tokio::select! {
                 u = utterances.recv() => {
                     let u = u?;

@@ -26,7 +26,9 @@ use std::time::Duration;
 use interfaces::msg::executive::{GameLog, StateTransition};
 use interfaces::msg::speech::SayRequest;
 use interfaces::node::Interface;
-use interfaces::{Bus, Shutdown, topics};
+use interfaces::{Bus, Moment, Shutdown, topics};
+
+use crate::component::sleep_until;
 
 /// Adds the coach's topics to the Executive's interface.
 pub fn interface(i: Interface) -> Interface {
@@ -70,9 +72,16 @@ pub async fn run_observed(
         counters: bus.counters().clone(),
         say_id: 0,
     };
-    // The bus clock (system or virtual), so timers follow a replayed or virtual clock.
+    // The bus clock (system or virtual), monotonic: timers follow a replayed or virtual clock.
     let clock = bus.clock().clone();
-    let now = move || Duration::from_nanos(u64::try_from(clock.now_ns()).unwrap_or(0));
+    let now = {
+        let clock = clock.clone();
+        move || clock.now().as_duration()
+    };
+    tokio::select! {
+        _ = shutdown.wait() => return Ok(()),
+        _ = clock.started() => {}
+    }
     tracing::info!(
         "coach: machine `{MACHINE}` with states {:?}",
         game.machine().definition().state_paths()
@@ -80,15 +89,11 @@ pub async fn run_observed(
     let o = game.start(now());
     out.emit(o).await?;
     observe(&game);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    status_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut status_tick = clock.interval(Duration::from_secs(1));
     let mut last_status = None;
     loop {
-        // Wake for the machine's next timer (at least once a second for the status).
-        let sleep_for = game
-            .next_deadline()
-            .map_or(Duration::from_secs(1), |d| d.saturating_sub(now()))
-            .min(Duration::from_secs(1));
+        // Wake for the machine's next timer, on the clock.
+        let deadline = game.next_deadline().map(Moment::from_duration);
         let (outcome, changed) = tokio::select! {
             _ = shutdown.wait() => return Ok(()),
             c = commands.recv() => (game.command(&c?, now()), true),
@@ -96,7 +101,7 @@ pub async fn run_observed(
             w = worlds.recv() => (game.world_model(&w?, now()), false),
             g = states.recv() => (game.game_state(&g?, now()), false),
             l = links.recv() => (game.link(&l?, now()), true),
-            _ = tokio::time::sleep(sleep_for) => (game.advance(now()), false),
+            _ = sleep_until(&clock, deadline) => (game.advance(now()), false),
             _ = status_tick.tick() => (Outcome::default(), true),
         };
         let stepped = outcome.steps.iter().any(|s| !s.ignored) || !outcome.outputs.is_empty();

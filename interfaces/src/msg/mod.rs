@@ -126,6 +126,7 @@ messages! {
     std_msgs::Text => "robocog.Text",
     std_msgs::Ping => "robocog.Ping",
     std_msgs::Counter64 => "robocog.Counter64",
+    std_msgs::ClockTime => "robocog.ClockTime",
     diag::Diagnostics => "robocog.Diagnostics",
     vision::RgbdFrame => "robocog.RgbdFrame",
     vision::CameraStatus => "robocog.CameraStatus",

@@ -26,3 +26,13 @@ pub struct Counter64 {
     pub header: Header,
     pub value: u64,
 }
+
+/// The time of a replayed recording, on `clock`: components started with `--clock bus` take it
+/// as their clock (ROS' `/clock`). `robocog replay` publishes it before each message it replays
+/// (and, between messages, as the recorded time passes).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ClockTime {
+    pub header: Header,
+    /// The time, nanoseconds since the Unix epoch; it only moves forward.
+    pub time_ns: i64,
+}

@@ -5,8 +5,23 @@
 //! which paces them by their `log_time` (the time the recorder received them) scaled by
 //! `--rate`. Payload bytes and type names go out exactly as recorded, so components decode them
 //! and the headers keep their original stamps and sequence numbers.
+//!
+//! The recording's time goes out on `clock` ([`interfaces::msg::std_msgs::ClockTime`]) when a
+//! component of the namespace follows it (subscribes to `clock`, `--clock bus`; unless
+//! `--no-clock`): before each message, the log time of that message, and while paced, the
+//! recorded time as it passes. Components started with `--clock bus` run their timers on it, so
+//! they take the recorded steps at any rate. Across `--loop` passes the clock keeps going
+//! forward (each pass starts just after the previous one ended).
+//!
+//! `--sync` names outputs of the graph the replay feeds (left out of the replay): at each
+//! recorded message of such a topic, the replay moves the clock to its log time, then waits
+//! (at most `--sync-timeout-s`) until the graph has published as many messages on the topic as
+//! the recording had by then. So the replay never runs ahead of the graph: what a component
+//! answered before a recorded input, it has answered before the replayed one, however fast the
+//! replay goes.
 
 use crate::mcap_io::{Damage, Recorded, RecordingReader};
+use interfaces::msg::std_msgs::ClockTime;
 use std::collections::{BTreeMap, HashMap};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -20,13 +35,19 @@ them) and their exact bytes (so headers keep their original stamps), paced as th
 received, scaled by --rate; or as fast as possible; or step by step (--step: a line on stdin,\n\
 Enter on a terminal, publishes the next N messages).\n\
 \n\
+The recording's time goes out on `clock` when a component follows it (started with\n\
+`--clock bus`; --no-clock: never), so its timers run on the recorded time at any rate. --sync T,...\n\
+names topics the replayed graph publishes itself (not replayed): the replay waits for the\n\
+graph's own message wherever the recording has one, so it never runs ahead of the graph.\n\
+\n\
 A truncated or corrupt file replays up to the damage, then the replay fails (exit code 1)\n\
 with the problem and its byte offset, and how many messages were read before it.\n\
 \n\
 Examples:\n\
 \x20 robocog replay game.mcap --namespace replay      # into a namespace of its own\n\
 \x20 robocog replay game.mcap --rate 4 --topics vision/ball\n\
-\x20 robocog replay game.mcap --step 10               # Enter publishes the next 10";
+\x20 robocog replay game.mcap --step 10               # Enter publishes the next 10\n\
+\x20 robocog replay game.mcap --as-fast-as-possible --sync vision/ball,executive/transitions";
 
 /// The flags of `robocog replay`; what it does is told in [`ABOUT`].
 #[derive(Debug, clap::Args)]
@@ -61,6 +82,98 @@ pub struct Args {
     /// Print progress on stderr this often (s); 0 for never.
     #[arg(long, default_value_t = 3.0, value_name = "S")]
     pub progress_s: f64,
+    /// Do not publish the recording's time on `clock` (by default it is, when a component of the
+    /// namespace follows it: started with `--clock bus`).
+    #[arg(long)]
+    pub no_clock: bool,
+    /// Topics the replayed graph publishes itself (comma-separated): not replayed; at each
+    /// recorded message of one, wait until the graph has published as many on it.
+    #[arg(long, value_delimiter = ',', value_name = "TOPIC,...")]
+    pub sync: Vec<String>,
+    /// Longest wait for the graph's message on a --sync topic (s); after one such wait the topic
+    /// is no longer waited for (the graph diverged from the recording, or is stuck).
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub sync_timeout_s: f64,
+}
+
+/// How often the clock is published while the replay waits for the next message (wall time).
+const CLOCK_TICK: Duration = Duration::from_millis(20);
+
+/// The `clock` topic's publisher and the last time it published.
+struct ClockOut {
+    publisher: Option<interfaces::Publisher<ClockTime>>,
+    last_ns: i64,
+}
+
+impl ClockOut {
+    /// Publishes `t_ns` when it is later than the last time published.
+    async fn to(&mut self, t_ns: i64) -> anyhow::Result<()> {
+        if let Some(p) = &self.publisher
+            && t_ns > self.last_ns
+        {
+            self.last_ns = t_ns;
+            let mut msg = ClockTime {
+                header: interfaces::Header {
+                    stamp_ns: t_ns,
+                    ..Default::default()
+                },
+                time_ns: t_ns,
+            };
+            p.publish(&mut msg)
+                .await
+                .map_err(|e| anyhow::anyhow!("publishing the clock: {e}"))?;
+        }
+        Ok(())
+    }
+}
+
+/// The components of the namespace that follow the bus clock (they subscribe to `clock`).
+async fn clock_followers(bus: &interfaces::Bus) -> anyhow::Result<Vec<String>> {
+    let mut names: Vec<String> = bus
+        .graph(Duration::from_secs(2))
+        .await?
+        .into_iter()
+        .filter_map(|t| match t {
+            interfaces::liveliness::Token::Subscriber {
+                component, topic, ..
+            } if topic == interfaces::topics::CLOCK.name() => Some(component),
+            _ => None,
+        })
+        .collect();
+    names.sort();
+    names.dedup();
+    Ok(names)
+}
+
+/// Counts what the graph publishes on a `--sync` topic.
+struct SyncTopic {
+    seen: tokio::sync::watch::Receiver<u64>,
+    /// How many the graph must have published (the recording's count so far, this pass).
+    expected: u64,
+    /// The count when this pass started.
+    base: u64,
+    /// No longer waited for (a wait timed out).
+    given_up: bool,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+}
+
+impl SyncTopic {
+    async fn declare(bus: &interfaces::Bus, topic: &str) -> anyhow::Result<SyncTopic> {
+        let (tx, seen) = tokio::sync::watch::channel(0u64);
+        let subscriber = bus
+            .session()
+            .declare_subscriber(bus.topic_key(topic))
+            .callback(move |_| tx.send_modify(|n| *n += 1))
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot subscribe to {topic}: {e}"))?;
+        Ok(SyncTopic {
+            seen,
+            expected: 0,
+            base: 0,
+            given_up: false,
+            _subscriber: subscriber,
+        })
+    }
 }
 
 /// What the reader thread sends.
@@ -75,8 +188,11 @@ enum Event {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    for t in args.topics.iter().chain(&args.exclude) {
+    for t in args.topics.iter().chain(&args.exclude).chain(&args.sync) {
         super::topic::check_topic(t)?;
+    }
+    if !(args.sync_timeout_s > 0.0 && args.sync_timeout_s.is_finite()) {
+        anyhow::bail!("--sync-timeout-s must be a positive number");
     }
     if !(args.rate > 0.0 && args.rate.is_finite()) {
         anyhow::bail!("--rate must be a positive number");
@@ -97,6 +213,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         let path = args.file.clone();
         let topics = args.topics.clone();
         let exclude = args.exclude.clone();
+        let sync = args.sync.clone();
         let looping = args.looping;
         std::thread::Builder::new()
             .name("replay-reader".into())
@@ -106,9 +223,9 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                     while let Some(m) = reader.next() {
                         let event = match m {
                             Ok(m) => {
-                                if (!topics.is_empty() && !topics.contains(&m.topic))
-                                    || exclude.contains(&m.topic)
-                                {
+                                let selected = (topics.is_empty() || topics.contains(&m.topic))
+                                    && !exclude.contains(&m.topic);
+                                if !selected && !sync.contains(&m.topic) {
                                     continue;
                                 }
                                 Event::Message(m)
@@ -147,13 +264,43 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     } else {
         format!("at {}x the recorded rate", args.rate)
     };
+    let mut sync: HashMap<String, SyncTopic> = HashMap::new();
+    for t in &args.sync {
+        sync.insert(t.clone(), SyncTopic::declare(&bus, t).await?);
+    }
+    let sync_timeout = Duration::from_secs_f64(args.sync_timeout_s);
+    let (mut sync_waits, mut sync_waited) = (0u64, Duration::ZERO);
+    tokio::time::sleep(Duration::from_secs_f64(args.wait_s.max(0.0))).await;
+    // The clock goes out when a component of the namespace follows it (`--clock bus`).
+    let followers = if args.no_clock {
+        Vec::new()
+    } else {
+        clock_followers(&bus).await?
+    };
+    let mut clock = ClockOut {
+        publisher: if followers.is_empty() {
+            None
+        } else {
+            Some(bus.publisher(&interfaces::topics::CLOCK).await?)
+        },
+        last_ns: i64::MIN,
+    };
     eprintln!(
-        "replaying {} ({:.1} MB) into namespace {ns:?}, {mode}{}",
+        "replaying {} ({:.1} MB) into namespace {ns:?}, {mode}{}{}{}",
         args.file.display(),
         file_len as f64 / 1e6,
-        if args.looping { ", looping" } else { "" }
+        if args.looping { ", looping" } else { "" },
+        if followers.is_empty() {
+            String::new()
+        } else {
+            format!(", its time on `clock` for {}", followers.join(", "))
+        },
+        if args.sync.is_empty() {
+            String::new()
+        } else {
+            format!(", in step with the graph's {}", args.sync.join(", "))
+        }
     );
-    tokio::time::sleep(Duration::from_secs_f64(args.wait_s.max(0.0))).await;
 
     let mut publishers: HashMap<(String, String), Option<Outlet>> = HashMap::new();
     let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
@@ -172,8 +319,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
     let mut damage: Option<(Damage, u64)> = None;
     let mut stopped: Option<&str> = None;
+    // Added to log times for the clock: 0 on the first pass, then what keeps it going forward.
+    let mut clock_offset: i64 = 0;
 
-    loop {
+    'replay: loop {
         let event = tokio::select! {
             e = rx.recv() => e,
             _ = tokio::signal::ctrl_c() => { stopped = Some("interrupted"); break; }
@@ -186,6 +335,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 passes += 1;
                 base = None;
                 first_log = None;
+                for s in sync.values_mut() {
+                    s.base = *s.seen.borrow();
+                    s.expected = 0;
+                }
                 if args.looping {
                     eprintln!("replay: end of the recording (pass {passes}), starting over");
                     continue;
@@ -198,10 +351,17 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             }
         };
         let log_time = m.log_time_ns;
+        if first_log.is_none() && passes > 0 && clock.publisher.is_some() {
+            // The next pass starts a millisecond after the last one ended, on the clock.
+            clock_offset = clock.last_ns.saturating_add(1_000_000) - log_time as i64;
+        }
         let log0 = *first_log.get_or_insert(log_time);
+        let clock_ns = (log_time as i64).saturating_add(clock_offset);
 
         // Pace.
-        if let Some(n) = args.step {
+        if let Some(n) = args.step
+            && !sync.contains_key(&m.topic)
+        {
             if step_left == 0 {
                 if interactive {
                     eprint!(
@@ -227,19 +387,74 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 step_left = n;
             }
             step_left -= 1;
-        } else if !args.as_fast_as_possible {
+        } else if args.step.is_none() && !args.as_fast_as_possible {
             match base {
                 None => base = Some((Instant::now(), m.log_time_ns)),
                 Some((wall0, log0)) => {
                     let offset_s = m.log_time_ns.saturating_sub(log0) as f64 * 1e-9 / args.rate;
                     let at = wall0 + Duration::from_secs_f64(offset_s);
-                    tokio::select! {
-                        _ = tokio::time::sleep_until(at) => {}
-                        _ = tokio::signal::ctrl_c() => { stopped = Some("interrupted"); break; }
-                        _ = sigterm.recv() => { stopped = Some("terminated"); break; }
+                    // The clock moves on while the replay waits for the message's time.
+                    loop {
+                        let now = Instant::now();
+                        if now >= at {
+                            break;
+                        }
+                        let wake = if clock.publisher.is_some() {
+                            at.min(now + CLOCK_TICK)
+                        } else {
+                            at
+                        };
+                        tokio::select! {
+                            _ = tokio::time::sleep_until(wake) => {}
+                            _ = tokio::signal::ctrl_c() => { stopped = Some("interrupted"); break 'replay; }
+                            _ = sigterm.recv() => { stopped = Some("terminated"); break 'replay; }
+                        }
+                        let passed = Instant::now().saturating_duration_since(wall0);
+                        let recorded = (passed.as_secs_f64() * args.rate * 1e9) as i64;
+                        let t = (log0 as i64)
+                            .saturating_add(recorded)
+                            .saturating_add(clock_offset)
+                            .min(clock_ns);
+                        clock.to(t).await?;
                     }
                 }
             }
+        }
+
+        // The clock first: what the message causes happens at its time. It replaces a recorded
+        // clock.
+        if clock.publisher.is_some() && m.topic == interfaces::topics::CLOCK.name() {
+            continue;
+        }
+        clock.to(clock_ns).await?;
+
+        // A graph's output: wait for the graph's own.
+        if let Some(s) = sync.get_mut(&m.topic) {
+            s.expected += 1;
+            if !s.given_up {
+                let need = s.base + s.expected;
+                let waited = Instant::now();
+                let got = tokio::select! {
+                    r = tokio::time::timeout(sync_timeout, s.seen.wait_for(|n| *n >= need)) => r.is_ok(),
+                    _ = tokio::signal::ctrl_c() => { stopped = Some("interrupted"); break; }
+                    _ = sigterm.recv() => { stopped = Some("terminated"); break; }
+                };
+                if waited.elapsed() > Duration::from_millis(1) {
+                    sync_waits += 1;
+                    sync_waited += waited.elapsed();
+                }
+                if !got {
+                    s.given_up = true;
+                    eprintln!(
+                        "replay: warning: the graph has published {} message(s) on {} where the recording had {} by {:.3} s; no longer waiting for it (the graph diverged from the recording, or is stuck)",
+                        *s.seen.borrow() - s.base,
+                        m.topic,
+                        s.expected,
+                        log_time.saturating_sub(log0) as f64 * 1e-9
+                    );
+                }
+            }
+            continue;
         }
 
         // Publish.
@@ -301,6 +516,12 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     }
     for (topic, (n, why)) in &skipped {
         eprintln!("  {topic:30} {n:>8} msgs SKIPPED: {why}");
+    }
+    if !sync.is_empty() {
+        eprintln!(
+            "  waited for the graph {sync_waits} time(s), {:.1} s in all",
+            sync_waited.as_secs_f64()
+        );
     }
     if published == 0 && !args.topics.is_empty() && damage.is_none() {
         eprintln!(
