@@ -1,0 +1,292 @@
+//! A reach's life after its goal is accepted: locating the target in the DR, solving (seeded
+//! restarts in a time budget, the self-collision check), and stepping along the trajectory until
+//! reached, unreachable or failed.
+
+use super::*;
+
+impl Ik {
+    /// Looks the target up in the DR: into the root frame, and into `world` for the status.
+    pub(super) async fn locate(&self, a: &mut Active) -> Result<(), Failure> {
+        let in_frame = goal_pose(&a.goal).map_err(|e| Failure(format!("invalid goal: {e}")))?;
+        let root_t_frame = self.transform(a.part.root, &a.goal.frame).await?;
+        let world_t_frame = self.transform("world", &a.goal.frame).await?;
+        a.world_t_root = self.transform("world", a.part.root).await?;
+        a.target_root = root_t_frame * in_frame;
+        a.target_world = world_t_frame * in_frame;
+        Ok(())
+    }
+
+    /// Solves the goal from the measured joints. `Moving` and a plan, or `Unreachable` / `Failed`.
+    /// Returns whether the goal stays active.
+    pub(super) fn fresh(&self) -> bool {
+        self.measured_at
+            .is_some_and(|t| self.bus.clock().elapsed(t).as_secs_f64() < STALE_JOINT_STATES_S)
+    }
+
+    pub(super) async fn solve(&mut self, a: &mut Active) -> bool {
+        if !self.fresh() {
+            let detail = format!(
+                "no joint states on {} for {STALE_JOINT_STATES_S} s: is joint_motor running?",
+                topics::BODY_JOINT_STATES.name()
+            );
+            self.fail(&a.goal, detail).await;
+            return false;
+        }
+        let q_now = match chain_q(&a.chain, &self.measured) {
+            Ok(q) => q,
+            Err(joint) => {
+                self.fail(&a.goal, format!("joint states have no joint `{joint}`"))
+                    .await;
+                return false;
+            }
+        };
+        let Some(mut body) = self.body.take() else {
+            return false;
+        };
+        for (name, &v) in &self.measured {
+            // Joints the model lacks are counted by the DR; here they are simply not used.
+            let _ = body.set_joint(name, v);
+        }
+        let mut req = IkRequest::new(a.part.name, ik_target(a.goal.kind, &a.target_root));
+        req.tolerance_m = a.tolerance_m.min(1e-3);
+        req.max_time_s = self.config.solve_budget_ms * 1e-3;
+        req.q_start = Some(q_now.clone());
+        req.seed = a.goal.id;
+        let started = Instant::now();
+        let joined = tokio::task::spawn_blocking(move || {
+            let r = body.solve(&req);
+            (body, r)
+        })
+        .await;
+        let (body, result) = match joined {
+            Ok(x) => x,
+            Err(e) => {
+                // The model is lost with the task: rebuild it before anything else.
+                tracing::error!("the IK task failed: {e}");
+                self.body = self.reload();
+                self.fail(&a.goal, format!("the IK solver failed: {e}"))
+                    .await;
+                return false;
+            }
+        };
+        let solve_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.body = Some(body);
+        let result = match result {
+            Ok(r) => r,
+            Err(e) => {
+                self.fail(&a.goal, format!("IK request refused: {e}")).await;
+                return false;
+            }
+        };
+        // A best attempt within the goal's (looser) tolerance is good enough, if collision-free.
+        let (q, residual_m) = match result {
+            IkResult::Reached { q, residual_m, .. } => (q, residual_m),
+            IkResult::Unreachable {
+                best_q,
+                residual_m,
+                cause: UnreachableCause::OutOfTolerance,
+                ..
+            } if residual_m <= a.tolerance_m
+                && a.goal.kind != ReachKind::Pose
+                && self.collision_free(a.part.name, &best_q) =>
+            {
+                (best_q, residual_m)
+            }
+            IkResult::Unreachable {
+                residual_m, cause, ..
+            } => {
+                self.bus.counters().incr("unreachable");
+                let why = match cause {
+                    UnreachableCause::OutOfTolerance => "no configuration within the joint limits",
+                    UnreachableCause::SelfCollision => {
+                        "every configuration within tolerance collides with the body"
+                    }
+                };
+                let detail = format!(
+                    "{why}: best residual {residual_m:.3} m (tolerance {:.3} m), solved in {solve_ms:.1} ms",
+                    a.tolerance_m
+                );
+                tracing::info!(part = %a.goal.body_part, id = a.goal.id, "unreachable: {detail}");
+                let mut s = self.active_status(a, ReachState::Unreachable, detail);
+                s.residual_m = residual_m;
+                self.publish(s).await;
+                if a.goal.follow {
+                    // Keep following: the target may come within reach. Nothing moves meanwhile.
+                    a.plan = None;
+                    return true;
+                }
+                return false;
+            }
+        };
+        let vmax: Vec<f64> = a
+            .vmax
+            .iter()
+            .map(|v| v * self.config.speed_fraction)
+            .collect();
+        let trajectory = match Trajectory::quintic(&q_now, &q, &vmax, None, a.goal.min_duration_s) {
+            Ok(t) => t,
+            Err(e) => {
+                self.fail(&a.goal, format!("no trajectory to the solution: {e}"))
+                    .await;
+                return false;
+            }
+        };
+        tracing::info!(
+            part = %a.goal.body_part,
+            id = a.goal.id,
+            "moving: residual {:.2} mm, solved in {solve_ms:.1} ms, trajectory {:.2} s",
+            residual_m * 1e3,
+            trajectory.duration_s()
+        );
+        a.plan = Some(Plan {
+            trajectory,
+            started: self.bus.clock().now(),
+            residual_m,
+            reached: false,
+            settle_failed: false,
+            last_sent: None,
+        });
+        let s = self.active_status(a, ReachState::Moving, "");
+        self.publish(s).await;
+        self.bus.counters().incr("solved");
+        true
+    }
+
+    pub(super) fn collision_free(&mut self, part: &str, q: &[f64]) -> bool {
+        self.body
+            .as_mut()
+            .and_then(|b| b.self_collision(part, q).ok())
+            .is_some_and(|c| c.is_none())
+    }
+
+    pub(super) fn reload(&self) -> Option<BodyIk> {
+        let urdf = find_model(self.config.urdf.as_deref(), "loki.urdf");
+        BodyIk::from_urdf_file(&urdf).ok()
+    }
+
+    /// One tick of the stream: every active part streams, holds, checks "reached", follows.
+    pub(super) async fn tick(&mut self) {
+        let names: Vec<String> = self.parts.keys().cloned().collect();
+        for name in names {
+            let Some(mut a) = self.parts.remove(&name) else {
+                continue;
+            };
+            let keep = match self.step(&mut a).await {
+                Ok(keep) => keep,
+                Err(Failure(detail)) => {
+                    self.bus.counters().incr("goals_failed");
+                    tracing::warn!(part = %a.goal.body_part, id = a.goal.id, "failed: {detail}");
+                    let s = self.active_status(&a, ReachState::Failed, detail);
+                    self.publish(s).await;
+                    false
+                }
+            };
+            if keep {
+                self.parts.insert(name, a);
+            } else {
+                self.release(&name).await;
+            }
+        }
+    }
+
+    pub(super) async fn step(&mut self, a: &mut Active) -> Result<bool, Failure> {
+        let now = self.bus.clock().now();
+        if let Some(since) = a.waiting_since {
+            if self.fresh() {
+                a.waiting_since = None;
+                return Ok(self.solve(a).await);
+            }
+            if now.duration_since(since).as_secs_f64() < 2.0 * STALE_JOINT_STATES_S {
+                return Ok(true);
+            }
+            return Err(Failure(format!(
+                "no joint states on {}: is joint_motor running?",
+                topics::BODY_JOINT_STATES.name()
+            )));
+        }
+        let period = 1.0 / self.config.stream_hz;
+        if let Some(plan) = a.plan.as_mut() {
+            let t = now.duration_since(plan.started).as_secs_f64();
+            let moving = t <= plan.trajectory.duration_s() + period;
+            let hold_due = plan
+                .last_sent
+                .is_none_or(|s| now.duration_since(s).as_secs_f64() >= 1.0 / self.config.hold_hz);
+            if moving || hold_due {
+                let mut q = vec![0.0; plan.trajectory.dof()];
+                plan.trajectory.sample_into(t + period, &mut q, None);
+                plan.last_sent = Some(now);
+                let goal = JointGoal {
+                    header: Header::default(),
+                    client: self.client(&a.goal.body_part),
+                    priority: self.config.priority,
+                    targets: a
+                        .chain
+                        .joints
+                        .iter()
+                        .zip(q.iter().zip(&a.vmax))
+                        .map(|(j, (&position, &max_speed))| JointTarget {
+                            joint: j.name.clone(),
+                            mode: JointMode::Position,
+                            position,
+                            max_speed,
+                            velocity: 0.0,
+                        })
+                        .collect(),
+                    release: false,
+                };
+                self.send(&goal).await?;
+            }
+            if !moving && !plan.reached && !plan.settle_failed {
+                let err = self.measured_tip(a).map(|(_, d)| d);
+                let Some(plan) = a.plan.as_mut() else {
+                    return Ok(true);
+                };
+                match err {
+                    Some(d) if d <= a.tolerance_m => {
+                        plan.reached = true;
+                        self.bus.counters().incr("reached");
+                        let s = self.active_status(a, ReachState::Reached, "");
+                        tracing::info!(
+                            part = %a.goal.body_part,
+                            id = a.goal.id,
+                            "reached: tip {:.1} mm from the target",
+                            s.distance_m * 1e3
+                        );
+                        self.publish(s).await;
+                    }
+                    _ if t > plan.trajectory.duration_s() + SETTLE_TIMEOUT_S => {
+                        plan.settle_failed = true;
+                        let detail = format!(
+                            "the measured joints did not bring the tip within {:.3} m of the target {SETTLE_TIMEOUT_S} s after the trajectory ended (now {})",
+                            a.tolerance_m,
+                            err.map_or("unknown".to_owned(), |d| format!("{d:.3} m"))
+                        );
+                        if !a.goal.follow {
+                            return Err(Failure(detail));
+                        }
+                        let s = self.active_status(a, ReachState::Failed, detail);
+                        self.publish(s).await;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        if a.goal.follow
+            && now.duration_since(a.last_follow).as_secs_f64() >= 1.0 / self.config.follow_hz
+        {
+            a.last_follow = now;
+            let before = (a.target_root, a.target_world, a.world_t_root);
+            let had_plan = a.plan.is_some();
+            self.locate(a).await?;
+            let moved = (a.target_root.translation.vector - before.0.translation.vector).norm();
+            if moved > self.config.follow_threshold_m || (!had_plan && moved > 1e-6) {
+                tracing::debug!(part = %a.goal.body_part, "target moved {moved:.3} m: solving again");
+                self.bus.counters().incr("follow_resolves");
+                return Ok(self.solve(a).await);
+            }
+            // A move within the threshold is ignored: the goal stays the target it was solved for.
+            (a.target_root, a.target_world, a.world_t_root) = before;
+        }
+        Ok(true)
+    }
+}

@@ -1,0 +1,447 @@
+//! The touch game's loop on the bus: commands, ball events and tracks, reach status and the
+//! machine's timers into the touch machine; its outputs (speech, gaze, reaches, the arm sent home
+//! with retries) out; the tracker and camera watchdogs.
+
+use super::*;
+
+/// A finished home request, back to the main loop for the game log.
+pub(super) struct HomeResult {
+    what: String,
+    result: Result<(), String>,
+}
+
+/// How often a rest posture is retried while the joints are still owned (the reach component
+/// releases them when its goal is cancelled), and how long apart.
+pub(super) const HOME_ATTEMPTS: usize = 5;
+pub(super) const HOME_RETRY: Duration = Duration::from_millis(300);
+
+pub(super) async fn send_home(bus: Bus, goal: JointGoal, results: mpsc::Sender<HomeResult>) {
+    let what = if goal.release {
+        "the release of the executive's joints".to_string()
+    } else {
+        format!("the rest posture of {} joints", goal.targets.len())
+    };
+    let mut last = String::new();
+    for attempt in 1..=HOME_ATTEMPTS {
+        match bus
+            .call(&topics::BODY_JOINT_GOAL, &goal, Duration::from_secs(2))
+            .await
+        {
+            Ok(r) if r.accepted => {
+                if results
+                    .try_send(HomeResult {
+                        what,
+                        result: Ok(()),
+                    })
+                    .is_err()
+                {
+                    bus.counters().incr("home_results_dropped");
+                }
+                return;
+            }
+            Ok(r) => {
+                last = format!("refused: {}", r.detail);
+                if r.refusal != JointRefusal::Owned {
+                    break;
+                }
+            }
+            Err(e) => last = e.to_string(),
+        }
+        if attempt < HOME_ATTEMPTS {
+            bus.clock().sleep(HOME_RETRY).await;
+        }
+    }
+    if results
+        .try_send(HomeResult {
+            what,
+            result: Err(last),
+        })
+        .is_err()
+    {
+        bus.counters().incr("home_results_dropped");
+    }
+}
+
+/// The touch game's publishers.
+/// How long without `vision/ball` before a tracking game calls the ball lost.
+pub(super) const TRACKER_SILENCE: Duration = Duration::from_millis(1500);
+
+/// Watches the tracker's heartbeat (`vision/ball` comes once per frame, found or not), on the
+/// component's clock.
+#[derive(Debug, Default)]
+pub(super) struct TrackerWatch {
+    last: Option<Moment>,
+    reported: bool,
+    last_resend: Option<Moment>,
+}
+
+impl TrackerWatch {
+    pub(super) fn heard(&mut self, now: Moment) {
+        self.last = Some(now);
+        self.reported = false;
+    }
+    /// When the watchdog is due (a silence of [`TRACKER_SILENCE`] since the tracker was last
+    /// heard, not reported yet), for the loop's sleep.
+    pub(super) fn deadline(&self) -> Option<Moment> {
+        self.last
+            .filter(|_| !self.reported)
+            .map(|t| t + TRACKER_SILENCE)
+    }
+    /// True once per silence of [`TRACKER_SILENCE`] or more (after the tracker was heard).
+    pub(super) fn silent(&mut self, now: Moment) -> bool {
+        match self.deadline() {
+            Some(d) if now >= d => {
+                self.reported = true;
+                true
+            }
+            _ => false,
+        }
+    }
+    /// At most once a second.
+    pub(super) fn may_resend(&mut self, now: Moment) -> bool {
+        if self
+            .last_resend
+            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
+            return false;
+        }
+        self.last_resend = Some(now);
+        true
+    }
+}
+
+/// Follows `vision/camera_status`: the robot says when its camera stops, and when it is back.
+/// A camera that flaps (stops and comes back again and again) is announced once per
+/// [`CAMERA_REPEAT`]; every change is logged.
+#[derive(Debug, Default)]
+pub(super) struct CameraWatch {
+    streaming: Option<bool>,
+    /// When "cannot see" was last said (on the component's clock); "see again" is said only
+    /// after it.
+    said_lost: Option<Moment>,
+    lost_pending: bool,
+}
+
+/// At most one "I can't see" in this long.
+pub(super) const CAMERA_REPEAT: Duration = Duration::from_secs(20);
+
+/// What the robot says when its camera stops delivering.
+pub const CANNOT_SEE: &str = "I can't see: my camera stopped. Give me a moment.";
+/// What it says when the camera is back.
+pub const SEE_AGAIN: &str = "I can see again.";
+
+impl CameraWatch {
+    /// On a change of the camera's state at `now`: what to log, and what to say (if anything).
+    pub(super) fn update(
+        &mut self,
+        s: &interfaces::msg::vision::CameraStatus,
+        now: Moment,
+    ) -> Option<(Option<&'static str>, String)> {
+        let before = self.streaming.replace(s.streaming);
+        match (before, s.streaming) {
+            (Some(true) | None, false) => {
+                let log = format!("the camera stopped ({}): {}", s.driver, s.detail);
+                let say = self
+                    .said_lost
+                    .is_none_or(|t| now.duration_since(t) >= CAMERA_REPEAT);
+                if say {
+                    self.said_lost = Some(now);
+                    self.lost_pending = true;
+                }
+                Some((say.then_some(CANNOT_SEE), log))
+            }
+            (Some(false), true) => {
+                let say = std::mem::take(&mut self.lost_pending);
+                Some((
+                    say.then_some(SEE_AGAIN),
+                    format!("the camera is back: {}", s.detail),
+                ))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Whether the game's eyes need the tracker to have a target.
+pub(super) fn wants_tracker(game: &TouchGame) -> bool {
+    let m = game.machine();
+    m.is_active(touch::state::SEARCHING) || m.is_active(touch::state::TRACKING)
+}
+
+pub(super) fn ball_target(s: &crate::settings::TouchSettings) -> BallTarget {
+    BallTarget {
+        active: true,
+        hue_deg: s.ball_hue_deg,
+        saturation: s.ball_saturation,
+        diameter_m: s.ball_diameter_m,
+        ..BallTarget::default()
+    }
+}
+
+pub(super) struct TouchOut {
+    bus: Bus,
+    say: interfaces::Publisher<SayRequest>,
+    target: interfaces::Publisher<interfaces::msg::tracking::BallTarget>,
+    reach: interfaces::Publisher<interfaces::msg::body::ReachGoal>,
+    transitions: interfaces::Publisher<StateTransition>,
+    log: interfaces::Publisher<GameLog>,
+    home: mpsc::Sender<HomeResult>,
+    say_id: u64,
+    finished: bool,
+}
+
+impl TouchOut {
+    /// Says `text` at once (outside the game's machine: what the robot tells about itself).
+    async fn say_now(&mut self, text: &str) -> anyhow::Result<()> {
+        self.say_id += 1;
+        let mut r = SayRequest {
+            id: self.say_id,
+            text: text.into(),
+            priority: interfaces::msg::speech::Priority::High,
+            ..Default::default()
+        };
+        self.say.publish(&mut r).await?;
+        Ok(())
+    }
+
+    async fn log_line(&mut self, l: LogLine) -> anyhow::Result<()> {
+        if l.distance_m >= 0.0 {
+            tracing::info!("[{}] {} ({:.3} m)", l.kind, l.text, l.distance_m);
+        } else {
+            tracing::info!("[{}] {}", l.kind, l.text);
+        }
+        if l.kind == "anomaly" {
+            self.bus.counters().incr("anomalies");
+        }
+        let mut g = GameLog {
+            machine: touch::MACHINE.into(),
+            kind: l.kind.into(),
+            text: l.text,
+            distance_m: l.distance_m,
+            ..Default::default()
+        };
+        self.log.publish(&mut g).await?;
+        Ok(())
+    }
+
+    async fn step(&mut self, s: &Step<touch::Act>) -> anyhow::Result<()> {
+        if s.ignored {
+            self.bus.counters().incr("ignored_events");
+            tracing::debug!("{} ignored in {:?}", s.event, s.active);
+            return Ok(());
+        }
+        self.transitions
+            .publish(&mut transition_msg(touch::MACHINE, s))
+            .await?;
+        Ok(())
+    }
+
+    /// Publishes an outcome: the transitions, then the outputs in order.
+    async fn emit(&mut self, o: touch::Outcome) -> anyhow::Result<()> {
+        for s in &o.steps {
+            self.step(s).await?;
+        }
+        for out in o.outputs {
+            match out {
+                Output::Say { text, priority } => {
+                    self.say_id += 1;
+                    let mut r = SayRequest {
+                        id: self.say_id,
+                        text,
+                        priority,
+                        ..Default::default()
+                    };
+                    self.say.publish(&mut r).await?;
+                }
+                Output::SetBallTarget(mut t) => self.target.publish(&mut t).await?,
+                Output::Reach(mut g) | Output::CancelReach(mut g) => {
+                    self.reach.publish(&mut g).await?
+                }
+                Output::Home(goal) | Output::Release(goal) => {
+                    tokio::spawn(send_home(self.bus.clone(), goal, self.home.clone()));
+                }
+                Output::Log(l) => self.log_line(l).await?,
+                Output::Finish => self.finished = true,
+            }
+        }
+        Ok(())
+    }
+}
+
+pub(super) fn snapshot_of(game: &TouchGame, mermaid: &str) -> Snapshot {
+    let m = game.machine();
+    Snapshot {
+        machine: touch::MACHINE.into(),
+        active: m.active_leaves(),
+        all_active: m.configuration(),
+        step: m.steps(),
+        mermaid: mermaid.to_string(),
+        game_on: !m.is_finished(),
+    }
+}
+
+pub(super) async fn run_touch(
+    bus: Bus,
+    config: Config,
+    settings: Settings,
+    mut shutdown: Shutdown,
+) -> anyhow::Result<()> {
+    let mut game = TouchGame::new(settings.touch.clone())?;
+    let mermaid = game.machine().definition().mermaid();
+    let snapshot: Shared = Arc::new(Mutex::new(snapshot_of(&game, &mermaid)));
+    let commands = bus.subscriber(&topics::GAME_COMMAND).await?;
+    let ball_events = bus.subscriber(&topics::VISION_BALL_EVENTS).await?;
+    let tracks = bus.subscriber(&topics::VISION_BALL).await?;
+    let statuses = bus.subscriber(&topics::BODY_REACH_STATUS).await?;
+    let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
+    let cameras = bus.subscriber(&topics::VISION_CAMERA_STATUS).await?;
+    let mut camera = CameraWatch::default();
+    let (home_tx, mut home_rx) = mpsc::channel(16);
+    let mut out = TouchOut {
+        bus: bus.clone(),
+        say: bus.publisher(&topics::SPEECH_SAY).await?,
+        target: bus.publisher(&topics::VISION_BALL_TARGET).await?,
+        reach: bus.publisher(&topics::BODY_REACH).await?,
+        transitions: bus.publisher(&topics::EXECUTIVE_TRANSITIONS).await?,
+        log: bus.publisher(&topics::EXECUTIVE_LOG).await?,
+        home: home_tx,
+        say_id: 0,
+        finished: false,
+    };
+    let _services = serve(&bus, snapshot.clone(), settings.propose.clone()).await?;
+    tracing::info!(
+        "touch the ball: arm {}, courtesy delay {} s, ball hue {} deg saturation {} diameter {} m",
+        settings.touch.arm,
+        settings.touch.courtesy_delay_s,
+        settings.touch.ball_hue_deg,
+        settings.touch.ball_saturation,
+        settings.touch.ball_diameter_m
+    );
+    // A clock that follows a replay has no time before the replay's first `clock` message.
+    let clock = bus.clock().clone();
+    tokio::select! {
+        _ = shutdown.wait() => return Ok(()),
+        _ = clock.started() => {}
+    }
+    let o = game.start(bus_now(&bus));
+    out.emit(o).await?;
+    *lock(&snapshot) = snapshot_of(&game, &mermaid);
+    let mut watch = TrackerWatch::default();
+    loop {
+        // Wake on the clock for the machine's next timer, or the tracker watchdog's.
+        let deadline = [
+            game.next_deadline().map(Moment::from_duration),
+            watch
+                .deadline()
+                .filter(|_| game.machine().is_active(touch::state::TRACKING)),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        let outcome = tokio::select! {
+            _ = shutdown.wait() => return Ok(()),
+            c = commands.recv() => {
+                let c = c?;
+                game.command(&c, bus_now(&bus))
+            }
+            e = ball_events.recv() => game.ball_event(&e?, bus_now(&bus)),
+            t = tracks.recv() => {
+                let mut t = t?;
+                // Only the newest track matters.
+                while let Some(newer) = tracks.try_recv() {
+                    t = newer;
+                }
+                watch.heard(clock.now());
+                if t.state == BallTrackState::Waiting && wants_tracker(&game) && watch.may_resend(clock.now()) {
+                    // A tracker without a target while the game needs one: it was restarted.
+                    out.log_line(LogLine {
+                        kind: "anomaly",
+                        text: "the ball tracker has no target (was it restarted?): sending it again".into(),
+                        distance_m: -1.0,
+                    }).await?;
+                    let mut target = ball_target(&settings.touch);
+                    out.target.publish(&mut target).await?;
+                    if game.machine().is_active(touch::state::TRACKING) {
+                        // It forgot the ball it was tracking: lost, said so, searched again.
+                        let lost = BallEvent {
+                            kind: BallEventKind::Lost,
+                            ..BallEvent::default()
+                        };
+                        let o = game.ball_event(&lost, bus_now(&bus));
+                        out.emit(o).await?;
+                    }
+                }
+                game.ball_track(&t, bus_now(&bus))
+            }
+            s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
+            c = cameras.recv() => {
+                let c = c?;
+                if let Some((said, log)) = camera.update(&c, clock.now()) {
+                    out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
+                    if let Some(said) = said {
+                        out.say_now(said).await?;
+                    }
+                }
+                game.advance(bus_now(&bus))
+            }
+            s = speaking.recv() => {
+                let s = s?;
+                match s.state {
+                    SpeakingState::Failed | SpeakingState::Dropped | SpeakingState::Interrupted => {
+                        out.log_line(LogLine {
+                            kind: "anomaly",
+                            text: format!("speech {:?}: \"{}\" {}", s.state, s.text, s.detail),
+                            distance_m: -1.0,
+                        }).await?;
+                    }
+                    _ => tracing::debug!("speech {:?}: {}", s.state, s.text),
+                }
+                game.advance(bus_now(&bus))
+            }
+            h = home_rx.recv() => {
+                if let Some(h) = h {
+                    let line = match h.result {
+                        Ok(()) => LogLine { kind: "reach", text: format!("{} was accepted", h.what), distance_m: -1.0 },
+                        Err(e) => LogLine { kind: "anomaly", text: format!("{} failed: {e}", h.what), distance_m: -1.0 },
+                    };
+                    out.log_line(line).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
+            _ = sleep_until(&clock, deadline) => game.advance(bus_now(&bus)),
+        };
+        out.emit(outcome).await?;
+        // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
+        // stopped): the ball is lost, said so, and searched for again once it is back.
+        if game.machine().is_active(touch::state::TRACKING) && watch.silent(clock.now()) {
+            out.log_line(LogLine {
+                kind: "anomaly",
+                text: format!(
+                    "no ball track for {:.1} s: the ball tracker is silent",
+                    TRACKER_SILENCE.as_secs_f64()
+                ),
+                distance_m: -1.0,
+            })
+            .await?;
+            let lost = BallEvent {
+                kind: BallEventKind::Lost,
+                ..BallEvent::default()
+            };
+            let o = game.ball_event(&lost, bus_now(&bus));
+            out.emit(o).await?;
+        }
+        *lock(&snapshot) = snapshot_of(&game, &mermaid);
+        if out.finished && config.exit_when_finished {
+            // Let the last messages and the rest postures go out (on the wall clock: this waits
+            // for the bus, and a replay's clock may never move again).
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            while let Ok(h) = home_rx.try_recv() {
+                if let Err(e) = h.result {
+                    tracing::warn!("rest posture failed: {e}");
+                }
+            }
+            tracing::info!("the game is over: exiting");
+            return Ok(());
+        }
+    }
+}
