@@ -5,7 +5,9 @@
 //! (see [`crate::liveliness`]).
 //!
 //! - Payloads are CDR ([`crate::codec`]); each sample's encoding is `application/cdr` with the
-//!   message's type name as schema, so any tool can decode it by name.
+//!   message's type name as schema ([`crate::raw::encoding_for`]), so any tool can decode it by
+//!   name. Tools that handle payloads whose type they only know by name (record, replay, the
+//!   topic tools, the viewer) use the raw subscriptions and publishers of [`crate::raw`].
 //! - Payloads from [`SHM_THRESHOLD`] bytes up (camera frames) are written once, straight into a
 //!   zenoh shared-memory buffer; a subscriber on the same host reads them without a copy through
 //!   the network stack. Each subscriber counts the samples that really arrived in shared memory
@@ -36,7 +38,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
-use zenoh::bytes::{Encoding, ZBytes};
+use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::Sample;
@@ -310,7 +312,7 @@ impl Bus {
             .inner
             .session
             .declare_publisher(key)
-            .encoding(Encoding::APPLICATION_CDR.with_schema(T::TYPE_NAME))
+            .encoding(crate::raw::encoding_for(T::TYPE_NAME))
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(zerr(format!("declaring a publisher on {name}")))?;
@@ -368,29 +370,7 @@ impl Bus {
             .session
             .declare_subscriber(key)
             .callback(move |sample| {
-                let mut sample = sample;
-                loop {
-                    match tx.try_send(sample) {
-                        Ok(()) => break,
-                        Err(flume::TrySendError::Full(back)) => {
-                            if evict.try_recv().is_ok() {
-                                let n = dropped.fetch_add(1, Ordering::Relaxed) + 1;
-                                let mut l =
-                                    drop_limiter.lock().unwrap_or_else(|p| p.into_inner());
-                                if let Some(suppressed) = l.allow(Instant::now()) {
-                                    tracing::warn!(
-                                        topic = %topic_name,
-                                        total = n,
-                                        suppressed,
-                                        "subscriber queue full: dropped the oldest sample (the consumer is slower than the publisher)"
-                                    );
-                                }
-                            }
-                            sample = back;
-                        }
-                        Err(flume::TrySendError::Disconnected(_)) => break,
-                    }
-                }
+                offer_dropping_oldest(&tx, &evict, sample, &dropped, &drop_limiter, &topic_name)
             })
             .await
             .map_err(zerr(format!("subscribing to {name}")))?;
@@ -551,7 +531,7 @@ impl Bus {
             .session
             .get(topic::service_key(self.namespace(), name))
             .payload(bytes)
-            .encoding(Encoding::APPLICATION_CDR.with_schema(Req::TYPE_NAME))
+            .encoding(crate::raw::encoding_for(Req::TYPE_NAME))
             .timeout(timeout)
             .await
             .map_err(|e| CallError::Zenoh(e.to_string()))?;
@@ -611,6 +591,42 @@ impl Bus {
             }
         }
         Ok(tokens)
+    }
+}
+
+/// Queue `item` without waiting: when the queue is full, drop its oldest item, count it in
+/// `dropped` and log it (at most as often as `limiter` allows). Runs in zenoh's receive callback,
+/// which must never block: a slow consumer loses its oldest samples instead of stalling the
+/// process' other subscriptions and the publishers.
+pub(crate) fn offer_dropping_oldest<S>(
+    tx: &flume::Sender<S>,
+    evict: &flume::Receiver<S>,
+    item: S,
+    dropped: &AtomicU64,
+    limiter: &Mutex<RateLimiter>,
+    topic: &str,
+) {
+    let mut item = item;
+    loop {
+        match tx.try_send(item) {
+            Ok(()) => break,
+            Err(flume::TrySendError::Full(back)) => {
+                if evict.try_recv().is_ok() {
+                    let n = dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                    let mut l = limiter.lock().unwrap_or_else(|p| p.into_inner());
+                    if let Some(suppressed) = l.allow(Instant::now()) {
+                        tracing::warn!(
+                            topic = %topic,
+                            total = n,
+                            suppressed,
+                            "subscriber queue full: dropped the oldest sample (the consumer is slower than the publisher)"
+                        );
+                    }
+                }
+                item = back;
+            }
+            Err(flume::TrySendError::Disconnected(_)) => break,
+        }
     }
 }
 

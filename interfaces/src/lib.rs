@@ -8,6 +8,9 @@
 //!   encapsulation header, as ROS 2 does) under `robocog/<namespace>/t/<topic>`.
 //! - **Services** are zenoh queryables under `robocog/<namespace>/s/<service>`; calls carry a
 //!   time-out and errors come back typed.
+//! - **Raw samples**: tools that carry messages they only know by type name (record, replay,
+//!   the topic tools, the viewer) subscribe and publish bytes through [`raw`], the one place
+//!   that writes and reads the `application/cdr;<type name>` encoding.
 //! - **Liveliness tokens** announce every component, publisher, subscriber and service with its
 //!   type name ([`liveliness`]), so tools see a running graph with no opt-in.
 //! - **Headers**: every message starts with a [`Header`] (stamp, sequence number, frame), stamped
@@ -27,6 +30,7 @@ pub mod liveliness;
 pub mod msg;
 pub mod node;
 pub mod ratelimit;
+pub mod raw;
 pub mod router;
 pub mod topic;
 pub mod topics;
@@ -37,4 +41,5 @@ pub use clock::{Clock, Moment};
 pub use header::Header;
 pub use msg::{Borrowable, Message};
 pub use node::{Interface, NodeArgs, Shutdown};
+pub use raw::{RawListener, RawPublisher, RawSample, RawSubscriber};
 pub use topic::{Service, Topic};

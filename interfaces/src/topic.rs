@@ -127,6 +127,25 @@ pub fn topic_key(ns: &str, name: &str) -> String {
     format!("robocog/{ns}/t/{name}")
 }
 
+/// The topic name a zenoh key of namespace `ns` names (`robocog/<ns>/t/vision/ball` gives
+/// `vision/ball`); `None` for a key that is not one of the namespace's topics.
+pub fn topic_name<'k>(ns: &str, key: &'k str) -> Option<&'k str> {
+    let name = key
+        .strip_prefix("robocog/")?
+        .strip_prefix(ns)?
+        .strip_prefix("/t/")?;
+    (!name.is_empty()).then_some(name)
+}
+
+/// Whether `s` is a valid topic pattern: a topic name whose chunks may also be `*` (any one
+/// chunk) or `**` (any number of chunks), e.g. `**` (every topic) or `vision/*`.
+pub fn is_valid_pattern(s: &str) -> bool {
+    !s.is_empty()
+        && s.split('/').all(|chunk| {
+            chunk == "*" || chunk == "**" || (!chunk.is_empty() && is_valid_name(chunk))
+        })
+}
+
 /// The zenoh key of service `name` in namespace `ns`.
 pub fn service_key(ns: &str, name: &str) -> String {
     format!("robocog/{ns}/s/{name}")
@@ -147,6 +166,21 @@ mod tests {
         assert!(!is_valid_segment("a/b"));
         assert!(!is_valid_segment(""));
         assert_eq!(topic_key("ns1", "vision/ball"), "robocog/ns1/t/vision/ball");
+        assert!(is_valid_pattern("**"));
+        assert!(is_valid_pattern("vision/*"));
+        assert!(is_valid_pattern("vision/ball"));
+        assert!(!is_valid_pattern("vision/**ball"));
+        assert!(!is_valid_pattern("vision//ball"));
+        assert!(!is_valid_pattern(""));
+    }
+
+    #[test]
+    fn topic_names_come_back_from_keys() {
+        let key = topic_key("ns1", "vision/ball");
+        assert_eq!(topic_name("ns1", &key), Some("vision/ball"));
+        assert_eq!(topic_name("ns", &key), None);
+        assert_eq!(topic_name("ns1", "robocog/ns1/s/dr/transform"), None);
+        assert_eq!(topic_name("ns1", "robocog/ns1/t/"), None);
     }
 
     #[test]

@@ -192,12 +192,12 @@ async fn a_touch_graph_is_saved_with_camera_robot_ball_logs_and_rates() {
         ..Default::default()
     };
     tr.publish(&mut transition).await.unwrap();
-    bus.session()
-        .put(
-            bus.topic_key("mystery/topic"),
-            vec![0x00, 0x01, 0x00, 0x00, 0, 0, 0, 0],
-        )
-        .encoding(zenoh::bytes::Encoding::APPLICATION_CDR.with_schema("robocog.NoSuchType"))
+    let mystery = bus
+        .raw_publisher("mystery/topic", "robocog.NoSuchType", "test-mystery")
+        .await
+        .unwrap();
+    mystery
+        .put(vec![0x00, 0x01, 0x00, 0x00, 0, 0, 0, 0])
         .await
         .unwrap();
     log_wait(&log, "the unknown type listed", t, |l| {

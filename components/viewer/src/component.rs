@@ -314,44 +314,35 @@ pub async fn run(bus: Bus, settings: Settings, mut shutdown: Shutdown) -> anyhow
     ));
 
     // One subscription for the whole namespace, or one per topic given.
-    let key_of_x = bus.topic_key("x");
-    let prefix = key_of_x.strip_suffix('x').unwrap_or(&key_of_x).to_string();
-    let keys: Vec<String> = if settings.topics.is_empty() {
-        vec![format!("{prefix}**")]
+    let patterns: Vec<&str> = if settings.topics.is_empty() {
+        vec![interfaces::raw::EVERY_TOPIC]
     } else {
-        settings.topics.iter().map(|t| bus.topic_key(t)).collect()
+        settings.topics.iter().map(String::as_str).collect()
     };
     let exclude: Arc<BTreeSet<String>> = Arc::new(settings.exclude.iter().cloned().collect());
     let mut subscribers = Vec::new();
-    for key in keys {
+    for pattern in patterns {
         let intake = intake.clone();
-        let prefix = prefix.clone();
         let exclude = exclude.clone();
         let untyped = counters.counter("view_untyped");
         let sub = bus
-            .session()
-            .declare_subscriber(key.clone())
-            .callback(move |sample| {
-                let Some(topic) = sample.key_expr().as_str().strip_prefix(&prefix) else {
-                    return;
-                };
-                if exclude.contains(topic) {
+            .raw_listener(pattern, move |sample| {
+                if exclude.contains(&sample.topic) {
                     return;
                 }
-                let enc = sample.encoding().to_string();
-                let Some((_, type_name)) = enc.split_once(';') else {
+                let Some(type_name) = sample.type_name.clone() else {
                     untyped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     return;
                 };
                 intake.offer(Sample {
-                    topic: topic.to_string(),
-                    type_name: type_name.to_string(),
-                    payload: sample.payload().to_bytes().to_vec(),
-                    receipt_ns: interfaces::header::system_now_ns(),
+                    topic: sample.topic.clone(),
+                    type_name,
+                    receipt_ns: sample.receipt_ns,
+                    payload: sample.into_payload(),
                 });
             })
             .await
-            .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("cannot subscribe to {pattern}: {e}"))?;
         subscribers.push(sub);
     }
 

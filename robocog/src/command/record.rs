@@ -1,6 +1,6 @@
 //! `robocog record`: every topic of a namespace (or a selection) into an MCAP file.
 //!
-//! Samples are taken by a zenoh callback, copied once and queued to a writer thread through a
+//! Samples are taken by a bus callback ([`interfaces::Bus::raw_listener`]), copied once and queued to a writer thread through a
 //! bounded queue (messages and bytes): a slow disk makes the recorder drop samples, counted per
 //! topic and reported, and never slows the publishers. The file layout is described in
 //! [`crate::mcap_io`].
@@ -212,17 +212,15 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     };
 
     // Subscriptions: one per selected topic, or one for the whole namespace.
-    let prefix = format!("robocog/{ns}/t/");
-    let keys: Vec<String> = if args.topics.is_empty() {
-        vec![format!("{prefix}**")]
+    let patterns: Vec<&str> = if args.topics.is_empty() {
+        vec![interfaces::raw::EVERY_TOPIC]
     } else {
-        args.topics.iter().map(|t| bus.topic_key(t)).collect()
+        args.topics.iter().map(String::as_str).collect()
     };
     let exclude: Arc<Vec<String>> = Arc::new(args.exclude.clone());
     let mut subscribers = Vec::new();
-    for key in keys {
+    for pattern in patterns {
         let cb = Callback {
-            prefix: prefix.clone(),
             exclude: exclude.clone(),
             tx: tx.clone(),
             stats: stats.clone(),
@@ -232,11 +230,9 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             per_topic: (args.queue / 2).max(1),
         };
         let sub = bus
-            .session()
-            .declare_subscriber(key.clone())
-            .callback(move |sample| cb.take(sample))
+            .raw_listener(pattern, move |sample| cb.take(sample))
             .await
-            .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("cannot subscribe to {pattern}: {e}"))?;
         subscribers.push(sub);
     }
     drop(tx);
@@ -396,9 +392,8 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     Ok(0)
 }
 
-/// What the zenoh callback needs. The callback runs on zenoh's threads: it never blocks.
+/// What the bus callback needs. The callback runs on zenoh's threads: it never blocks.
 struct Callback {
-    prefix: String,
     exclude: Arc<Vec<String>>,
     tx: SyncSender<Item>,
     stats: Arc<Mutex<Stats>>,
@@ -410,22 +405,21 @@ struct Callback {
 }
 
 impl Callback {
-    fn take(&self, sample: zenoh::sample::Sample) {
+    fn take(&self, mut sample: interfaces::RawSample) {
         if self.stop.load(Ordering::Acquire) {
             return;
         }
-        let Some(topic) = sample.key_expr().as_str().strip_prefix(&self.prefix) else {
-            return;
-        };
+        let topic = std::mem::take(&mut sample.topic);
+        let topic = topic.as_str();
         if self.exclude.iter().any(|e| e == topic) {
             return;
         }
-        let log_time_ns = u64::try_from(interfaces::header::system_now_ns()).unwrap_or(0);
-        let Some(type_name) = super::topic::sample_type(&sample) else {
+        let log_time_ns = u64::try_from(sample.receipt_ns).unwrap_or(0);
+        let Some(type_name) = sample.type_name.take() else {
             lock(&self.stats).untyped += 1;
             return;
         };
-        let len = sample.payload().len();
+        let len = sample.payload_len();
         // Admission: room in the byte budget, and this topic holds at most its share of the
         // queue, so a flood on one topic cannot crowd the others out.
         let admitted = {
@@ -446,7 +440,7 @@ impl Callback {
                 topic: topic.to_string(),
                 type_name,
                 log_time_ns,
-                payload: sample.payload().to_bytes().into_owned(),
+                payload: sample.into_payload(),
             };
             match self.tx.try_send(item) {
                 Ok(()) => true,

@@ -154,16 +154,14 @@ struct SyncTopic {
     base: u64,
     /// No longer waited for (a wait timed out).
     given_up: bool,
-    _subscriber: zenoh::pubsub::Subscriber<()>,
+    _subscriber: interfaces::RawListener,
 }
 
 impl SyncTopic {
     async fn declare(bus: &interfaces::Bus, topic: &str) -> anyhow::Result<SyncTopic> {
         let (tx, seen) = tokio::sync::watch::channel(0u64);
         let subscriber = bus
-            .session()
-            .declare_subscriber(bus.topic_key(topic))
-            .callback(move |_| tx.send_modify(|n| *n += 1))
+            .raw_listener(topic, move |_| tx.send_modify(|n| *n += 1))
             .await
             .map_err(|e| anyhow::anyhow!("cannot subscribe to {topic}: {e}"))?;
         Ok(SyncTopic {
@@ -547,8 +545,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
 
 /// A publisher for one (topic, type) of the recording, announced like a component's.
 struct Outlet {
-    publisher: zenoh::pubsub::Publisher<'static>,
-    _token: zenoh::liveliness::LivelinessToken,
+    publisher: interfaces::RawPublisher,
 }
 
 impl Outlet {
@@ -563,41 +560,22 @@ impl Outlet {
         if !interfaces::topic::is_valid_name(&m.topic) {
             return Err("not a valid robocog topic name".into());
         }
-        if m.type_name.is_empty() || m.type_name.contains(['/', '*', '$', '?', '#']) {
+        if !interfaces::raw::is_valid_type_name(&m.type_name) {
             return Err(format!("no usable type name ({:?})", m.type_name));
         }
         Ok(())
     }
 
     async fn declare(bus: &interfaces::Bus, topic: &str, type_name: &str) -> anyhow::Result<Self> {
-        use zenoh::bytes::Encoding;
-        use zenoh::qos::CongestionControl;
         let publisher = bus
-            .session()
-            .declare_publisher(bus.topic_key(topic))
-            .encoding(Encoding::APPLICATION_CDR.with_schema(type_name.to_string()))
-            .congestion_control(CongestionControl::Block)
+            .raw_publisher(topic, type_name, "robocog-replay")
             .await
             .map_err(|e| anyhow::anyhow!("cannot publish on {topic}: {e}"))?;
-        let token = bus
-            .session()
-            .liveliness()
-            .declare_token(interfaces::liveliness::publisher_key(
-                bus.namespace(),
-                "robocog-replay",
-                type_name,
-                topic,
-            ))
-            .await
-            .map_err(|e| anyhow::anyhow!("cannot declare the publisher of {topic}: {e}"))?;
         if interfaces::msg::lookup(type_name).is_err() {
             eprintln!(
                 "replay: warning: {type_name} (on {topic}) is not a type of this build; published anyway"
             );
         }
-        Ok(Self {
-            publisher,
-            _token: token,
-        })
+        Ok(Self { publisher })
     }
 }

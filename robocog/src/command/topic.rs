@@ -4,7 +4,7 @@
 //! payload by the type name its sample carries (its encoding's schema), through the registry of
 //! `interfaces`.
 
-use interfaces::liveliness::{self, Token};
+use interfaces::liveliness::Token;
 use interfaces::msg;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -127,12 +127,6 @@ pub(crate) fn check_topic(name: &str) -> anyhow::Result<()> {
     }
 }
 
-/// The type name a sample carries in its encoding (`application/cdr;robocog.Text`).
-pub(crate) fn sample_type(sample: &zenoh::sample::Sample) -> Option<String> {
-    let enc = sample.encoding().to_string();
-    enc.split_once(';').map(|(_, schema)| schema.to_string())
-}
-
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
     let bus = super::cli_bus(&args.connect).await?;
     match args.verb {
@@ -202,9 +196,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         } => {
             check_topic(&topic)?;
             let sub = bus
-                .session()
-                .declare_subscriber(bus.topic_key(&topic))
-                .with(zenoh::handlers::FifoChannel::new(1024))
+                .raw_subscriber(&topic, 1024)
                 .await
                 .map_err(|e| anyhow::anyhow!("cannot subscribe to {topic}: {e}"))?;
             let mut printed = 0u64;
@@ -212,9 +204,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             loop {
                 let next = match timeout {
                     Some(t) => {
-                        match tokio::time::timeout(Duration::from_secs_f64(t), sub.recv_async())
-                            .await
-                        {
+                        match tokio::time::timeout(Duration::from_secs_f64(t), sub.recv()).await {
                             Ok(r) => r,
                             Err(_) => {
                                 eprintln!("no message on {topic} for {t} s");
@@ -222,13 +212,15 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                             }
                         }
                     }
-                    None => sub.recv_async().await,
+                    None => sub.recv().await,
                 };
                 let Ok(sample) = next else { return Ok(1) };
-                let bytes = sample.payload().to_bytes();
-                let decoded = sample_type(&sample)
+                let bytes = sample.payload();
+                let decoded = sample
+                    .type_name
+                    .as_deref()
                     .ok_or_else(|| "the sample names no type".to_string())
-                    .and_then(|t| msg::lookup(&t).map_err(|e| e.to_string()))
+                    .and_then(|t| msg::lookup(t).map_err(|e| e.to_string()))
                     .and_then(|e| (e.to_json)(&bytes).map_err(|e| e.to_string()));
                 match decoded {
                     Ok(v) => {
@@ -261,9 +253,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         } => {
             check_topic(&topic)?;
             let sub = bus
-                .session()
-                .declare_subscriber(bus.topic_key(&topic))
-                .with(zenoh::handlers::FifoChannel::new(4096))
+                .raw_subscriber(&topic, 4096)
                 .await
                 .map_err(|e| anyhow::anyhow!("cannot subscribe to {topic}: {e}"))?;
             let started = Instant::now();
@@ -273,7 +263,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             let mut total = 0u64;
             loop {
                 let deadline = end.map_or(report_at, |e| e.min(report_at));
-                match tokio::time::timeout_at(deadline.into(), sub.recv_async()).await {
+                match tokio::time::timeout_at(deadline.into(), sub.recv()).await {
                     Ok(Ok(_)) => {
                         total += 1;
                         stamps.push_back(Instant::now());
@@ -331,33 +321,14 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             let mut value = (entry.example)();
             merge(&mut value, &given, &type_name, "")?;
             let payload = (entry.from_json)(value)?;
-            let key = bus.topic_key(&topic);
             let publisher = bus
-                .session()
-                .declare_publisher(key)
-                .encoding(zenoh::bytes::Encoding::APPLICATION_CDR.with_schema(type_name.clone()))
+                .raw_publisher(&topic, &type_name, "robocog-cli")
                 .await
                 .map_err(|e| anyhow::anyhow!("cannot publish on {topic}: {e}"))?;
-            let _token = bus
-                .session()
-                .liveliness()
-                .declare_token(liveliness::publisher_key(
-                    bus.namespace(),
-                    "robocog-cli",
-                    &type_name,
-                    &topic,
-                ))
-                .await
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
             // A one-shot publication is lost if nobody listens yet: wait for a subscriber.
             let until = Instant::now() + Duration::from_secs_f64(wait.max(0.0));
             loop {
-                let matching = publisher
-                    .matching_status()
-                    .await
-                    .map(|m| m.matching())
-                    .unwrap_or(false);
-                if matching {
+                if publisher.has_subscribers().await {
                     break;
                 }
                 if Instant::now() >= until {
