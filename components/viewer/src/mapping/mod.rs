@@ -18,9 +18,9 @@ use world_model::field::FieldModel;
 use world_model::graph::{At, SceneGraph};
 use world_model::types::ChangeEvent;
 
-mod robot;
-mod dr_mirror;
 mod coach_field;
+mod dr_mirror;
+mod robot;
 
 /// One thing to log: an archetype at an entity path.
 pub struct Logged {
