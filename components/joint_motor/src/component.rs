@@ -363,8 +363,7 @@ impl interfaces::node::Component for JointMotorComponent {
     type Config = Config;
     type Prepared = Config;
 
-    fn interface(config: &Config) -> Interface {
-        let _ = config;
+    fn interface(_: &Config) -> Interface {
         interface()
     }
 

@@ -513,8 +513,7 @@ impl interfaces::node::Component for Viewer {
     type Config = Flags;
     type Prepared = Settings;
 
-    fn interface(config: &Flags) -> Interface {
-        let _ = config;
+    fn interface(_: &Flags) -> Interface {
         interface()
     }
 

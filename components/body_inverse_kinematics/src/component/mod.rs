@@ -586,8 +586,7 @@ impl interfaces::node::Component for BodyInverseKinematics {
     type Config = Config;
     type Prepared = Config;
 
-    fn interface(config: &Config) -> Interface {
-        let _ = config;
+    fn interface(_: &Config) -> Interface {
         interface()
     }
 
