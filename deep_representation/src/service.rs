@@ -992,9 +992,10 @@ pub async fn run(bus: Bus, config: ServiceConfig, mut shutdown: Shutdown) -> any
 /// The service's flags.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Flags {
-    /// Keep the state here (snapshot + change log) and recover it on start. Without it the state
-    /// lives in memory only.
-    #[arg(long, env = "ROBOCOG_DR_STATE_DIR")]
+    /// Keep the state here (snapshot + change log) and recover it on start. Under `robocog
+    /// launch` it defaults to the component's state folder (ROBOCOG_STATE_DIR), so a restarted
+    /// DR takes up the world where it was; without either the state lives in memory only.
+    #[arg(long, env = "ROBOCOG_STATE_DIR")]
     pub state_dir: Option<PathBuf>,
     /// Start scene when there is no saved state.
     #[arg(long, value_enum, default_value_t = Scene::Touch)]

@@ -643,6 +643,9 @@ impl Outcome {
 pub struct TouchGame {
     machine: Machine<TouchCtx, Input, Act>,
     ctx: TouchCtx,
+    /// A "touch the ball" taken up from before a restart, carried out once the ball is seen
+    /// (see [`resume`]).
+    resume_touch: bool,
 }
 
 impl TouchGame {
@@ -652,6 +655,7 @@ impl TouchGame {
         Ok(TouchGame {
             machine: Machine::new(def),
             ctx: TouchCtx::new(Arc::new(settings)),
+            resume_touch: false,
         })
     }
 
@@ -797,6 +801,7 @@ impl TouchGame {
             self.ctx.ball_reported = None;
         }
         out.extend(self.send(ball_event_name(ev.kind), Input::Ball(ev.clone()), now));
+        out.extend(self.resume_pending(now));
         out
     }
 
@@ -889,6 +894,7 @@ impl TouchGame {
     }
 }
 
+pub mod resume;
 #[cfg(test)]
 mod tests;
 

@@ -11,7 +11,14 @@
 //!   `clock` topic (a replay's time), which the component's timers and stamps then follow;
 //! - publishes the bus counters on `diagnostics` once a second;
 //! - turns SIGTERM and Ctrl-C into a [`Shutdown`] the component's code awaits;
-//! - exits 0 on a clean return, 1 with the error's whole cause chain otherwise.
+//! - exits 0 on a clean return, 1 with the error's whole cause chain otherwise; or
+//!   [`EX_CONFIG`] (78) when the component cannot start for a reason a restart cannot fix (an
+//!   error of [`Component::prepare`], or a [`ConfigError`] anywhere in the chain), and
+//!   [`EX_USAGE`] (64) for flags it cannot parse. The launcher does not restart a component that
+//!   exits with either: it stops the graph at once with the component's message.
+//! - with `--preflight`, runs [`Component::prepare`] alone and exits: 0 when the component could
+//!   start, [`EX_CONFIG`] with the reason when it could not (what `robocog check` runs to find
+//!   missing files and devices before a launch).
 
 use crate::args::ConnectArgs;
 use crate::bus::{Bus, BusOptions};
@@ -24,6 +31,48 @@ use std::future::Future;
 use std::process::ExitCode;
 use std::time::Duration;
 use tokio::sync::watch;
+
+/// Exit code of a component that cannot start for a reason a restart cannot fix: a missing or
+/// malformed file, no such device (sysexits' `EX_CONFIG`).
+pub const EX_CONFIG: u8 = 78;
+/// Exit code of a component given flags it cannot parse (sysexits' `EX_USAGE`).
+pub const EX_USAGE: u8 = 64;
+
+/// An error that a restart cannot fix (a missing file, no such device or port, a malformed
+/// configuration): a component whose error chain holds one exits with [`EX_CONFIG`]. Errors of
+/// [`Component::prepare`] are configuration errors without it.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct ConfigError(pub String);
+
+/// A [`ConfigError`] as an `anyhow` error.
+pub fn config_error(message: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::Error::new(ConfigError(message.to_string()))
+}
+
+/// Exit code of `--preflight` when the component cannot tell yet: what it needs is made by the
+/// running graph (a simulated device another component writes). Sysexits' `EX_TEMPFAIL`.
+pub const EX_TEMPFAIL: u8 = 75;
+
+/// A [`Component::prepare`] error meaning "what I need does not exist yet, and another part of
+/// the running graph makes it": in a start the component waits for it; under `--preflight`
+/// (see [`preflight`]) it returns this instead, and exits with [`EX_TEMPFAIL`].
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct NotYetCheckable(pub String);
+
+static PREFLIGHT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether this process only checks its configuration (`--preflight`): a `prepare` that would
+/// wait for something the running graph makes returns [`NotYetCheckable`] instead of waiting.
+pub fn preflight() -> bool {
+    PREFLIGHT.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// Whether `e`'s chain holds a [`ConfigError`].
+pub fn is_config_error(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some())
+}
 
 /// Where a component takes its time from (`--clock`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -44,6 +93,11 @@ pub struct NodeArgs {
     /// Print this component's topics and services as JSON and exit.
     #[arg(long)]
     pub describe: bool,
+    /// Check the configuration as a start would (read the files, load the models, open the
+    /// devices), say so, and exit without joining the bus: 0 when the component could start,
+    /// 78 (EX_CONFIG) with the reason when it could not.
+    #[arg(long, conflicts_with = "describe")]
+    pub preflight: bool,
     /// Name of this instance on the bus (default: the component's name). The launcher sets it to
     /// the manifest's component name.
     #[arg(long, env = "ROBOCOG_COMPONENT")]
@@ -177,7 +231,9 @@ pub trait Component {
     fn interface(config: &Self::Config) -> Interface;
     /// Check the flags and do the slow or failing setup (read files, load models) before the
     /// component joins the bus, so that it is up, for the launcher and its dependents, only
-    /// once it can work. An error here exits 1 with the message, before joining.
+    /// once it can work. An error here is a configuration error: the component exits with
+    /// [`EX_CONFIG`] and the message, before joining, and is not restarted. Put here what a
+    /// restart cannot fix; what can come and go (a peer, a network) belongs in `run`.
     fn prepare(config: Self::Config) -> anyhow::Result<Self::Prepared>;
     /// Run until `shutdown` resolves (then return `Ok`) or an error ends the component.
     fn run(
@@ -207,9 +263,16 @@ pub fn main<C: Component>() -> ExitCode {
     if !C::AFTER_HELP.is_empty() {
         command = command.after_help(C::AFTER_HELP);
     }
-    let matches = command.get_matches();
-    let cli = match Cli::<C::Config>::from_arg_matches(&matches) {
+    let cli = match command
+        .try_get_matches()
+        .and_then(|m| Cli::<C::Config>::from_arg_matches(&m))
+    {
         Ok(cli) => cli,
+        Err(e) if e.use_stderr() => {
+            let _ = e.print();
+            return ExitCode::from(EX_USAGE);
+        }
+        // --help, --version.
         Err(e) => e.exit(),
     };
     let interface = C::interface(&cli.config);
@@ -217,13 +280,30 @@ pub fn main<C: Component>() -> ExitCode {
         return run(cli.node, interface, |_, _| async { Ok(()) });
     }
     init_logging();
+    let name = cli.node.name.clone().unwrap_or_else(|| C::NAME.to_string());
+    PREFLIGHT.store(cli.node.preflight, std::sync::atomic::Ordering::Relaxed);
     let prepared = match C::prepare(cli.config) {
         Ok(p) => p,
+        Err(e)
+            if cli.node.preflight
+                && e.chain()
+                    .any(|c| c.downcast_ref::<NotYetCheckable>().is_some()) =>
+        {
+            eprintln!("{name}: cannot be checked before the graph runs: {e:#}");
+            return ExitCode::from(EX_TEMPFAIL);
+        }
         Err(e) => {
-            eprintln!("{}: {e:#}", C::NAME);
-            return ExitCode::FAILURE;
+            eprintln!(
+                "{name}: cannot start: {e:#} (a configuration error: exit {EX_CONFIG}, a restart would not fix it)"
+            );
+            return ExitCode::from(EX_CONFIG);
         }
     };
+    if cli.node.preflight {
+        drop(prepared);
+        println!("{name}: ready to start");
+        return ExitCode::SUCCESS;
+    }
     run(cli.node, interface, move |bus, shutdown| {
         C::run(bus, prepared, shutdown)
     })
@@ -257,6 +337,11 @@ where
         .name
         .clone()
         .unwrap_or_else(|| interface.component.clone());
+    if args.preflight {
+        // Nothing to prepare beyond the flags, which parsed.
+        println!("{name}: ready to start");
+        return ExitCode::SUCCESS;
+    }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -303,6 +388,12 @@ where
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_config_error(&e) => {
+            tracing::error!(
+                "{e:#} (a configuration error: exit {EX_CONFIG}, a restart would not fix it)"
+            );
+            ExitCode::from(EX_CONFIG)
+        }
         Err(e) => {
             tracing::error!("{e:#}");
             ExitCode::FAILURE

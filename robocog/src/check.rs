@@ -1,6 +1,8 @@
 //! Graph checks that need the binaries: each one must exist, and, asked with `--describe`, say
 //! what it publishes and subscribes, so that every input of the graph has a publisher of the same
-//! type, every called service a server, and no hardware port two owners.
+//! type, every called service a server, and no hardware port two owners; and, asked with
+//! `--preflight`, whether it could start as configured (its own check of its files, models and
+//! devices, the one it runs at start).
 
 use crate::manifest::{Manifest, Origin, Problem, Problems};
 use interfaces::node::Interface;
@@ -18,48 +20,152 @@ pub struct Report {
     pub warnings: Vec<String>,
 }
 
-/// Ask `binary` for its interface, with a time-out.
-pub fn describe(binary: &Path, args: &[String], timeout: Duration) -> Result<Interface, String> {
+/// What a finished tool run printed.
+struct Ran {
+    status: std::process::ExitStatus,
+    stdout: String,
+    stderr: String,
+}
+
+/// Run `binary args extra` with `env`, reading its output as it comes (a chatty start cannot
+/// fill a pipe and hang), killed after `timeout`.
+fn run_with_timeout(
+    binary: &Path,
+    args: &[String],
+    env: &[(String, String)],
+    extra: &str,
+    timeout: Duration,
+) -> Result<Ran, String> {
     let mut child = Command::new(binary)
         .args(args)
-        .arg("--describe")
+        .arg(extra)
+        .envs(env.iter().map(|(k, v)| (k, v)))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .map_err(|e| format!("cannot run {}: {e}", binary.display()))?;
-    let started = Instant::now();
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break status,
-            Ok(None) if started.elapsed() > timeout => {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(format!(
-                    "`{} --describe` did not answer within {timeout:?}",
-                    binary.display()
-                ));
+    let (mut out, mut err) = (child.stdout.take(), child.stderr.take());
+    std::thread::scope(|scope| {
+        let stdout = scope.spawn(move || {
+            let mut s = String::new();
+            if let Some(o) = out.as_mut() {
+                let _ = o.read_to_string(&mut s);
             }
-            Ok(None) => std::thread::sleep(Duration::from_millis(10)),
-            Err(e) => return Err(e.to_string()),
-        }
-    };
-    let mut out = String::new();
-    if let Some(mut o) = child.stdout.take() {
-        let _ = o.read_to_string(&mut out);
-    }
-    if !status.success() {
-        let mut err = String::new();
-        if let Some(mut e) = child.stderr.take() {
-            let _ = e.read_to_string(&mut err);
-        }
-        return Err(format!("`--describe` failed ({status}): {}", err.trim()));
-    }
-    serde_json::from_str(&out).map_err(|e| format!("`--describe` printed no interface: {e}"))
+            s
+        });
+        let stderr = scope.spawn(move || {
+            let mut s = String::new();
+            if let Some(e) = err.as_mut() {
+                let _ = e.read_to_string(&mut s);
+            }
+            s
+        });
+        let started = Instant::now();
+        let status = loop {
+            match child.try_wait() {
+                Ok(Some(status)) => break Ok(status),
+                Ok(None) if started.elapsed() > timeout => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    break Err(format!(
+                        "`{} {extra}` did not answer within {timeout:?}",
+                        binary.display()
+                    ));
+                }
+                Ok(None) => std::thread::sleep(Duration::from_millis(10)),
+                Err(e) => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    break Err(e.to_string());
+                }
+            }
+        };
+        let stdout = stdout.join().unwrap_or_default();
+        let stderr = stderr.join().unwrap_or_default();
+        status.map(|status| Ran {
+            status,
+            stdout,
+            stderr,
+        })
+    })
 }
 
-/// Check binaries, topics, services and hardware of `manifest`.
-pub fn check(manifest: &Manifest) -> Result<Report, Problems> {
+/// Ask `binary` for its interface, with a time-out.
+pub fn describe(binary: &Path, args: &[String], timeout: Duration) -> Result<Interface, String> {
+    let ran = run_with_timeout(binary, args, &[], "--describe", timeout)?;
+    if !ran.status.success() {
+        return Err(format!(
+            "`--describe` failed ({}): {}",
+            ran.status,
+            ran.stderr.trim()
+        ));
+    }
+    serde_json::from_str(&ran.stdout).map_err(|e| format!("`--describe` printed no interface: {e}"))
+}
+
+fn preflight_one(binary: &Path, args: &[String], env: &[(String, String)]) -> Preflight {
+    preflight(binary, args, env, PREFLIGHT_TIMEOUT)
+}
+
+/// How long one component may take to check its configuration (a speech model loads).
+const PREFLIGHT_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// What `--preflight` said.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Preflight {
+    /// It could start.
+    Ready,
+    /// It cannot tell before the graph runs (what it needs, another component makes).
+    NotYet(String),
+    /// It could not start: the component's own reason.
+    Cannot(String),
+}
+
+/// Ask `binary` whether it could start as configured (`--preflight`).
+pub fn preflight(
+    binary: &Path,
+    args: &[String],
+    env: &[(String, String)],
+    timeout: Duration,
+) -> Preflight {
+    let ran = match run_with_timeout(binary, args, env, "--preflight", timeout) {
+        Ok(r) => r,
+        Err(e) => return Preflight::Cannot(e),
+    };
+    // The component's own words: from its "cannot ..." line on (the error comes last), without
+    // the name it starts with and the launcher's advice about restarts.
+    let lines: Vec<&str> = ran
+        .stderr
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .collect();
+    let from = lines
+        .iter()
+        .rposition(|l| l.contains(": cannot start: ") || l.contains(": cannot be checked"))
+        .unwrap_or(lines.len().saturating_sub(3));
+    let said = lines[from..].join("\n    ");
+    let said = said
+        .split_once(": cannot start: ")
+        .or_else(|| said.split_once(": cannot be checked before the graph runs: "))
+        .map_or(said.as_str(), |(_, rest)| rest);
+    let said = said
+        .trim_end()
+        .trim_end_matches(|c| c == ')')
+        .rsplit_once(" (a configuration error")
+        .map_or(said.trim_end(), |(s, _)| s)
+        .to_string();
+    match ran.status.code() {
+        Some(0) => Preflight::Ready,
+        Some(c) if c == i32::from(interfaces::node::EX_TEMPFAIL) => Preflight::NotYet(said),
+        Some(c) => Preflight::Cannot(format!("(exit {c}) {said}")),
+        None => Preflight::Cannot(format!("({}) {said}", ran.status)),
+    }
+}
+
+/// Check binaries, topics, services and hardware of `manifest`; with `preflight`, also ask every
+/// component whether it could start as configured (its files, models and devices), all at once.
+pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
     let mut problems = Vec::new();
     let mut report = Report::default();
     for c in &manifest.components {
@@ -86,6 +192,52 @@ pub fn check(manifest: &Manifest) -> Result<Report, Problems> {
                     c.origin, c.name
                 )),
             },
+        }
+    }
+    if preflight {
+        let checks: Vec<_> = manifest
+            .components
+            .iter()
+            .filter(|c| report.interfaces.contains_key(&c.name))
+            .filter_map(|c| Some((c, c.resolve_binary()?)))
+            .collect();
+        let env: Vec<Vec<(String, String)>> = checks
+            .iter()
+            .map(|(c, _)| {
+                c.env
+                    .iter()
+                    .map(|(k, v)| (k.clone(), v.clone()))
+                    .chain([("ROBOCOG_COMPONENT".to_string(), c.name.clone())])
+                    .collect()
+            })
+            .collect();
+        let results: Vec<Preflight> = std::thread::scope(|scope| {
+            let handles: Vec<_> = checks
+                .iter()
+                .zip(&env)
+                .map(|((c, binary), env)| scope.spawn(move || preflight_one(binary, &c.args, env)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Preflight::Cannot("the preflight check panicked".into())
+                    })
+                })
+                .collect()
+        });
+        for ((c, _), result) in checks.iter().zip(results) {
+            match result {
+                Preflight::Ready => {}
+                Preflight::NotYet(e) => report.warnings.push(format!(
+                    "{}: component {:?} cannot be checked before the graph runs: {e}",
+                    c.origin, c.name
+                )),
+                Preflight::Cannot(e) => problems.push(Problem {
+                    origin: c.origin.clone(),
+                    message: format!("component {:?} cannot start {e}", c.name),
+                }),
+            }
         }
     }
     // Topic ends: every subscription needs a publisher of the same type in the graph.

@@ -5,9 +5,22 @@
 //! terminal's Ctrl-C reaches the launcher only, and stopping a child also stops what it started),
 //! and dies with the launcher even if the launcher is killed with SIGKILL (`PR_SET_PDEATHSIG`).
 //! A component is *up* when its liveliness token appears on the bus.
+//!
+//! Each component gets a state folder, `<state_dir>/<component>` in ROBOCOG_STATE_DIR (created
+//! by the component if it keeps state): it outlives the component's restarts, so a restarted
+//! component takes up where it was (the deep representation recovers its world model there). A
+//! launch starts afresh (an earlier launch's folder is moved aside to `<namespace>.previous`)
+//! unless `--resume`; a launch that ends cleanly removes its folder, one that fails keeps it for
+//! a look and for `--resume`.
+//!
+//! A component that exits with [`EX_CONFIG`] (it cannot start for a reason a restart cannot fix:
+//! a missing file, no such device) or [`EX_USAGE`] (flags it cannot parse) is not restarted,
+//! whatever its policy: if it is required, the graph stops at once with its message and the
+//! launcher exits with [`EX_CONFIG`].
 
 use crate::manifest::{Component, Manifest, RestartPolicy};
 use interfaces::liveliness::{self, Token};
+use interfaces::node::{EX_CONFIG, EX_USAGE};
 use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
 use std::collections::{HashMap, VecDeque};
@@ -25,6 +38,11 @@ pub struct LaunchOptions {
     /// The endpoint the launcher's router listens on (`tcp/127.0.0.1:0` for any free port).
     pub router: String,
     pub color: bool,
+    /// The graph's state folder for this namespace: each component keeps its state in
+    /// `<state_dir>/<component>` (ROBOCOG_STATE_DIR), across its restarts.
+    pub state_dir: std::path::PathBuf,
+    /// Keep what an earlier launch left in `state_dir` (else it is moved aside).
+    pub resume: bool,
 }
 
 const PALETTE: [u8; 12] = [36, 32, 33, 35, 34, 31, 96, 92, 93, 95, 94, 91];
@@ -108,8 +126,16 @@ fn failed(status: Option<ExitStatus>) -> bool {
     status.is_none_or(|s| !s.success())
 }
 
+/// Whether the component said it cannot start for a reason a restart cannot fix.
+fn misconfigured(status: Option<ExitStatus>) -> bool {
+    status
+        .and_then(|s| s.code())
+        .is_some_and(|c| c == i32::from(EX_CONFIG) || c == i32::from(EX_USAGE))
+}
+
 /// Run the graph until it completes, fails for good, or is asked to stop. Returns the process
-/// exit code: 0 on a clean stop or completion, 1 when a required component failed.
+/// exit code: 0 on a clean stop or completion, 1 when a required component failed,
+/// [`EX_CONFIG`] when a required component cannot start for a reason a restart cannot fix.
 pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i32> {
     let order: Vec<String> = manifest
         .start_order()
@@ -126,6 +152,13 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         manifest.name,
         opts.namespace,
         manifest.components.len()
+    ));
+
+    prepare_state_dir(&opts.state_dir, opts.resume)?;
+    say(format!(
+        "component state in {}{}",
+        opts.state_dir.display(),
+        if opts.resume { " (resumed)" } else { "" }
     ));
 
     let (tx, mut rx) = mpsc::channel::<Event>(1024);
@@ -222,7 +255,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             };
             if ready
                 && let Some(c) = children.get_mut(name)
-                && let Err(e) = spawn(c, &connect, &tx)
+                && let Err(e) = spawn(c, &connect, &opts.state_dir, &tx)
             {
                 say(format!("cannot start {name}: {e:#}"));
                 exit_code = Some(1);
@@ -273,7 +306,20 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     RestartPolicy::Always => true,
                 };
                 c.pid = None;
-                if restart && c.restarts < c.spec.max_restarts {
+                if misconfigured(status) {
+                    c.state = State::Failed;
+                    let tail = last_lines(c);
+                    if c.spec.required {
+                        say(format!(
+                            "{name} cannot start ({what}: its configuration, a file or a device it needs; a restart would not fix it): stopping the graph{tail}"
+                        ));
+                        exit_code = Some(i32::from(EX_CONFIG));
+                    } else {
+                        say(format!(
+                            "{name} cannot start ({what}: its configuration, a file or a device it needs); it is not required, the graph goes on without it{tail}"
+                        ));
+                    }
+                } else if restart && c.restarts < c.spec.max_restarts {
                     c.restarts += 1;
                     let delay =
                         (c.spec.backoff * 2u32.saturating_pow(c.restarts - 1)).min(MAX_BACKOFF);
@@ -311,7 +357,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             Some(Event::RestartDue { name }) => {
                 if let Some(c) = children.get_mut(&name)
                     && c.state == State::Backoff
-                    && let Err(e) = spawn(c, &connect, &tx)
+                    && let Err(e) = spawn(c, &connect, &opts.state_dir, &tx)
                 {
                     say(format!("cannot restart {name}: {e:#}"));
                     c.state = State::Failed;
@@ -349,7 +395,51 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
 
     stop_all(&manifest, &mut children).await;
     drop(router);
-    Ok(exit_code.unwrap_or(0))
+    let code = exit_code.unwrap_or(0);
+    if code == 0 {
+        if let Err(e) = std::fs::remove_dir_all(&opts.state_dir)
+            && e.kind() != std::io::ErrorKind::NotFound
+        {
+            say(format!(
+                "cannot remove the state folder {}: {e}",
+                opts.state_dir.display()
+            ));
+        }
+    } else {
+        say(format!(
+            "the components' state stays in {} (robocog launch --resume takes it up)",
+            opts.state_dir.display()
+        ));
+    }
+    Ok(code)
+}
+
+/// Make `dir` ready for this launch: kept with `resume`, else an earlier launch's moved aside.
+fn prepare_state_dir(dir: &std::path::Path, resume: bool) -> anyhow::Result<()> {
+    use anyhow::Context;
+    if !resume && dir.exists() {
+        let mut aside = dir.as_os_str().to_owned();
+        aside.push(".previous");
+        let aside = std::path::PathBuf::from(aside);
+        if aside.exists() {
+            std::fs::remove_dir_all(&aside)
+                .with_context(|| format!("cannot remove {}", aside.display()))?;
+        }
+        std::fs::rename(dir, &aside).with_context(|| {
+            format!(
+                "cannot move an earlier launch's state aside to {}",
+                aside.display()
+            )
+        })?;
+        say(format!(
+            "an earlier launch left state in {}: moved aside to {} (--resume takes it up)",
+            dir.display(),
+            aside.display()
+        ));
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the state folder {}", dir.display()))?;
+    Ok(())
 }
 
 fn last_lines(c: &Child) -> String {
@@ -385,12 +475,14 @@ fn die_with_parent(cmd: &mut Command) {
 fn spawn(
     c: &mut Child,
     connect: &interfaces::ConnectArgs,
+    state_dir: &std::path::Path,
     tx: &mpsc::Sender<Event>,
 ) -> anyhow::Result<()> {
     let mut cmd = Command::new(&c.binary);
     cmd.args(&c.spec.args)
         .envs(connect.to_env())
         .env("ROBOCOG_COMPONENT", &c.spec.name)
+        .env("ROBOCOG_STATE_DIR", state_dir.join(&c.spec.name))
         .envs(&c.spec.env)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

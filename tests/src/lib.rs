@@ -207,6 +207,9 @@ impl Launch {
                 "--color",
                 "never",
             ])
+            // The components' state in the test's scratch folder, not in the user's.
+            .arg("--state-root")
+            .arg(scratch(namespace).join("state"))
             .args(extra)
             .env("RUST_LOG", "info")
             .stdin(Stdio::null())
@@ -321,7 +324,16 @@ pub fn wait_child(child: &mut Child, timeout: Duration) -> Option<ExitStatus> {
 
 /// Run a command to completion with a time-out (killed and reported when it runs over).
 pub fn run(program: &Path, args: &[String], timeout: Duration) -> Output {
-    let mut child = Command::new(program)
+    run_in(None, program, args, timeout)
+}
+
+/// [`run`] in the working folder `dir` (else the test's).
+pub fn run_in(dir: Option<&Path>, program: &Path, args: &[String], timeout: Duration) -> Output {
+    let mut command = Command::new(program);
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    let mut child = command
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

@@ -344,3 +344,95 @@ depends_on = ["sim"]
         "depends on \"sim\", which is disabled",
     );
 }
+
+#[test]
+fn a_component_that_cannot_start_is_reported_before_the_launch() {
+    let ns = unique_namespace("preflight");
+    let dir = scratch(&ns);
+    let missing = dir.join("calibration.toml");
+    let text = format!(
+        r#"
+[[component]]
+name = "fine"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+
+[[component]]
+name = "broken"
+binary = "@FIXTURE@"
+args = ["--role", "idle", "--needs-file", "{}"]
+"#,
+        missing.display()
+    );
+    let m = write_manifest(&dir, "graph.toml", &text)
+        .display()
+        .to_string();
+    let t = Duration::from_secs(60);
+    let out = run(&bin("robocog"), &["check".into(), m.clone()], t);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    // At the component's line, in the component's own words.
+    let at = format!("{m}:8: ");
+    assert!(
+        err.lines().any(|l| l.contains(&at)
+            && l.contains("component \"broken\" cannot start (exit 78) no such file")),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("no such file {}", missing.display())),
+        "{err}"
+    );
+    assert!(!err.contains("\"fine\""), "{err}");
+    // Structure only: sound.
+    let out = run(
+        &bin("robocog"),
+        &["check".into(), m.clone(), "--no-preflight".into()],
+        t,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Once the file is there, it could start.
+    std::fs::write(&missing, "").unwrap();
+    let out = run(&bin("robocog"), &["check".into(), m], t);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_real_profile_without_its_servo_map_is_reported_before_the_launch() {
+    // This machine has no servo map in /etc/robocog and no servos: Loki's real profile must
+    // say so before anything starts, naming the example map to start from.
+    let ns = unique_namespace("realcheck");
+    let dir = scratch(&ns);
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/touch_the_ball.toml");
+    let servo_map = format!("servo_config={}", dir.join("loki_servos.toml").display());
+    let out = run(
+        &bin("robocog"),
+        &[
+            "check".into(),
+            manifest.display().to_string(),
+            "--profile".into(),
+            "real".into(),
+            "--set".into(),
+            servo_map,
+        ],
+        Duration::from_secs(90),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("component \"joint_motor\" cannot start (exit 78)"))
+        .unwrap_or_else(|| panic!("joint_motor's missing servo map is not reported:\n{err}"));
+    assert!(
+        err.contains("reading the servo map") && err.contains("models/loki_servos.example.toml"),
+        "{err}"
+    );
+}

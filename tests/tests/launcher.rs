@@ -177,6 +177,86 @@ args = ["--role", "idle"]
 }
 
 #[test]
+fn a_component_that_cannot_start_is_not_restarted_and_stops_the_graph_at_once() {
+    let ns = unique_namespace("misconfigured");
+    let dir = scratch(&ns);
+    let missing = dir.join("calibration.toml");
+    let text = format!(
+        r#"
+[[component]]
+name = "bystander"
+binary = "@FIXTURE@"
+args = ["--role", "idle"]
+
+[[component]]
+name = "broken"
+binary = "@FIXTURE@"
+args = ["--role", "idle", "--needs-file", "{}"]
+restart = "always"
+max_restarts = 5
+backoff_ms = 50
+depends_on = ["bystander"]
+"#,
+        missing.display()
+    );
+    let m = write_manifest(&dir, "graph.toml", &text);
+    let mut launch = Launch::start(&m, &ns, &[]);
+    let status = launch.wait_exit(Duration::from_secs(40));
+    let all = launch.lines.all().join("\n");
+    assert_eq!(status.code(), Some(78), "{all}");
+    assert!(
+        all.contains("broken cannot start (exit code 78") && all.contains("stopping the graph"),
+        "{all}"
+    );
+    assert!(
+        all.contains(&format!("no such file {}", missing.display())),
+        "the component's own message: {all}"
+    );
+    assert_eq!(
+        launch.lines.count(|l| l.contains("started broken")),
+        1,
+        "started once, never restarted: {all}"
+    );
+    assert!(!all.contains("restart 1/5"), "{all}");
+    assert!(all.contains("all components stopped"), "{all}");
+}
+
+#[test]
+fn the_real_profile_without_its_servo_map_stops_at_once() {
+    // No servo map, no servos: joint_motor cannot start, says why, and the launcher stops the
+    // graph at once instead of restarting it five times.
+    let ns = unique_namespace("realmissing");
+    let dir = scratch(&ns);
+    let manifest =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/touch_the_ball.toml");
+    let servo_map = format!("servo_config={}", dir.join("loki_servos.toml").display());
+    let mut launch = Launch::start(
+        &manifest,
+        &ns,
+        &[
+            "--profile",
+            "real",
+            "--set",
+            &servo_map,
+            "--set",
+            "panel=false",
+        ],
+    );
+    let status = launch.wait_exit(Duration::from_secs(60));
+    let all = launch.lines.all().join("\n");
+    assert_eq!(status.code(), Some(78), "{all}");
+    assert!(
+        all.contains("joint_motor cannot start (exit code 78"),
+        "{all}"
+    );
+    assert!(all.contains("reading the servo map"), "{all}");
+    assert!(
+        !all.contains("joint_motor stopped"),
+        "never restarted: {all}"
+    );
+}
+
+#[test]
 fn a_component_that_never_comes_up_is_named() {
     let ns = unique_namespace("silent");
     let m = write_manifest(

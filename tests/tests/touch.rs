@@ -349,6 +349,112 @@ async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_world_model_comes_back_with_the_ball_and_the_command_is_carried_out() {
+    // The DR is killed while the robot looks at the ball; the launcher restarts it, and it
+    // recovers its world from its state folder (the launcher's, per component): the ball where
+    // it was. The person says "touch the ball" once, and the robot touches it.
+    let game = play_with(
+        "restart_mid_game",
+        &[],
+        Duration::from_secs(200),
+        Some(("person: sees gaze within", "deep_representation")),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    let out = game.output.join("\n");
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("deep_representation stopped") && l.contains("restart 1/")),
+        "no restart of the DR in the output:\n{out}"
+    );
+    assert!(
+        game.output.iter().any(|l| l.contains("deep_representation")
+            && (l.contains("recovered the state from")
+                || (l.contains("changes replayed") && !l.contains("(0 changes replayed)")))),
+        "the restarted DR did not recover its state:\n{out}"
+    );
+    assert!(
+        !game.said_any("can't reach") && !game.said_any("cannot reach"),
+        "{:?}",
+        game.said
+    );
+    assert_eq!(
+        game.output
+            .iter()
+            .filter(|l| l.contains("says it again"))
+            .count(),
+        0,
+        "the person had to repeat herself:\n{out}"
+    );
+    game.entered_in_order(&["tracking", "reaching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+}
+
+/// The Executive killed at `trigger` (an output line) during the `restart_mid_game` scenario: the
+/// launcher restarts it, it takes the game up from its state folder, says so in one line, and
+/// the person never repeats a command.
+async fn the_executive_killed_at(trigger: &str) -> Game {
+    let game = play_with(
+        "restart_mid_game",
+        &[],
+        Duration::from_secs(200),
+        Some((trigger, "executive")),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    let out = game.output.join("\n");
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("executive stopped") && l.contains("restart 1/")),
+        "no restart of the Executive in the output:\n{out}"
+    );
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("the Executive restarted: taking the game up again")),
+        "the restarted Executive did not take the game up:\n{out}"
+    );
+    let back = game
+        .said
+        .iter()
+        .filter(|s| s.contains("away for a moment"))
+        .count();
+    assert_eq!(back, 1, "one line about the restart: {:?}", game.said);
+    assert!(
+        !game.said_any("not seen the ball") && !game.said_any("can't reach"),
+        "{:?}",
+        game.said
+    );
+    assert_eq!(
+        game.output
+            .iter()
+            .filter(|l| l.contains("says it again"))
+            .count(),
+        0,
+        "the person had to repeat herself:\n{out}"
+    );
+    game
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_executive_takes_up_a_tracking_game() {
+    the_executive_killed_at("person: sees gaze within").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_executive_takes_up_a_reaching_arm() {
+    // Killed once the arm is on its way (the Executive's own log line): the new process finds
+    // the ball again and reaches for it without being asked twice.
+    let game = the_executive_killed_at("-> arm/reaching/moving").await;
+    game.entered_in_order(&["reaching", "searching", "tracking", "reaching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_low_confidence_command_is_confirmed_by_yes() {
     // The person speaks in a noisy room (6 dB SNR) to a cautious robot: the recognizer's
     // confidence (at most about 0.85 at that SNR) is under the dialog's high threshold (0.9),

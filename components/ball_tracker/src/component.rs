@@ -10,7 +10,12 @@
 //!   and a skipped frame is never copied at all.
 //! - `vision/ball_target` ([`BallTarget`]): what to look for; `active = false` clears it. The
 //!   flags `--target-hue --target-saturation --target-diameter` set one at start (a manifest's
-//!   way to give it); a message replaces it.
+//!   way to give it); a message replaces it from the first frame stamped at or after the
+//!   message's own stamp (a frame captured before the target was given is tracked with the
+//!   target it was captured under, however late it is processed: so a replay, where frames and
+//!   targets arrive in another order than live, tracks each frame as it was tracked live). A
+//!   target stamped more than [`TARGET_LEAD`] ahead of the frames (clocks that disagree) or
+//!   unstamped applies at once; the former is counted (`targets_ahead_of_frames`).
 //!
 //! Publishes, per processed frame, in frame order:
 //! - `vision/ball` ([`BallTrack`]): state, window, centroid, 3D centre in the camera optical
@@ -144,11 +149,21 @@ pub enum FrameRejected {
     },
 }
 
+/// How far a target's stamp may lead the frames before it is taken for a clock disagreement and
+/// applied at once.
+pub const TARGET_LEAD: Duration = Duration::from_secs(1);
+/// Targets held for later frames beyond which the oldest applies at once.
+const PENDING_TARGETS: usize = 16;
+
 /// The tracker with its bus-side conversions: one frame message in, one track and its events
 /// out. No bus here, so it is tested directly.
 #[derive(Debug)]
 pub struct Handler {
     tracker: BallTracker,
+    /// Checked targets (stamp, target) given for frames not yet seen, oldest first.
+    pending: std::collections::VecDeque<(i64, Option<Target>)>,
+    /// Targets applied at once because their stamp led the frames by more than [`TARGET_LEAD`].
+    targets_ahead: u64,
 }
 
 impl Handler {
@@ -156,7 +171,11 @@ impl Handler {
     pub fn new(config: TrackerConfig, target: Option<Target>) -> Result<Handler, TrackError> {
         let mut tracker = BallTracker::new(config);
         tracker.set_target(target)?;
-        Ok(Handler { tracker })
+        Ok(Handler {
+            tracker,
+            pending: Default::default(),
+            targets_ahead: 0,
+        })
     }
 
     /// The tracker.
@@ -164,14 +183,50 @@ impl Handler {
         &self.tracker
     }
 
-    /// Applies a target message (`active = false` clears the target).
+    /// Takes a target message (`active = false` clears the target): checked now, applied from
+    /// the first frame stamped at or after its stamp (at once if unstamped). A bad target is
+    /// refused and changes nothing.
     pub fn set_target(&mut self, msg: &BallTarget) -> Result<(), TrackError> {
-        let target = msg.active.then_some(Target {
-            hue_deg: msg.hue_deg,
-            saturation: msg.saturation,
-            diameter_m: msg.diameter_m,
-        });
-        self.tracker.set_target(target)
+        let target = msg
+            .active
+            .then_some(Target {
+                hue_deg: msg.hue_deg,
+                saturation: msg.saturation,
+                diameter_m: msg.diameter_m,
+            })
+            .map(Target::checked)
+            .transpose()?;
+        if msg.header.stamp_ns == 0 {
+            self.pending.clear();
+            return self.tracker.set_target(target);
+        }
+        if self.pending.len() == PENDING_TARGETS
+            && let Some((_, oldest)) = self.pending.pop_front()
+        {
+            self.tracker.set_target(oldest)?;
+        }
+        self.pending.push_back((msg.header.stamp_ns, target));
+        Ok(())
+    }
+
+    /// Targets applied at once because their stamp led the frames by more than [`TARGET_LEAD`].
+    pub fn targets_ahead_of_frames(&self) -> u64 {
+        self.targets_ahead
+    }
+
+    /// Applies the pending targets due for a frame stamped `stamp_ns`.
+    fn apply_targets_due(&mut self, stamp_ns: i64) -> Result<(), TrackError> {
+        let lead_ns = TARGET_LEAD.as_nanos() as i64;
+        while let Some(&(at, target)) = self.pending.front() {
+            let ahead = at.saturating_sub(stamp_ns) > lead_ns;
+            if at > stamp_ns && !ahead {
+                break;
+            }
+            self.targets_ahead += u64::from(ahead);
+            self.pending.pop_front();
+            self.tracker.set_target(target)?;
+        }
+        Ok(())
     }
 
     /// Tracks one frame message.
@@ -190,6 +245,8 @@ impl Handler {
         let seq = frame.header.seq;
         let image = camera::convert::from_view(frame)
             .map_err(|source| FrameRejected::Malformed { seq, source })?;
+        self.apply_targets_due(frame.header.stamp_ns)
+            .map_err(|source| FrameRejected::Refused { seq, source })?;
         let out = self
             .tracker
             .process(&image, image.timestamp_s)
@@ -396,7 +453,18 @@ async fn track_frames(
                     counters.incr("skipped_frames");
                     frame = newer;
                 }
-                let result = handler.process_view(&frame.view());
+                let ahead = handler.targets_ahead_of_frames();
+                let view = frame.view();
+                let seq = view.header.seq;
+                let result = handler.process_view(&view);
+                if handler.targets_ahead_of_frames() > ahead {
+                    counters.incr("targets_ahead_of_frames");
+                    tracing::warn!(
+                        "a target stamped more than {:?} after frame {} applied at once: do the clocks of the camera and the target's sender agree?",
+                        TARGET_LEAD,
+                        seq
+                    );
+                }
                 // The shared-memory buffer goes back to the camera's pool.
                 drop(frame);
                 match result {
@@ -657,5 +725,63 @@ mod tests {
         );
         h.set_target(&BallTarget::default()).unwrap();
         assert_eq!(h.tracker().state(), TrackState::Waiting);
+    }
+
+    #[test]
+    fn a_target_applies_from_the_frames_captured_after_it_was_given() {
+        // Three frames 1/30 s apart; a target stamped between the first and the second arrives
+        // before the first is processed (a replay, or a tracker behind): the first frame is
+        // still tracked without it, the second with it.
+        let frames = sim_frames(Scenario::Still, 6);
+        let stamp = |i: usize| frames[i].0.header.stamp_ns;
+        let t = red_target();
+        let mut target = BallTarget {
+            active: true,
+            hue_deg: t.hue_deg,
+            saturation: t.saturation,
+            diameter_m: t.diameter_m,
+            ..Default::default()
+        };
+        target.header.stamp_ns = stamp(0) + 1;
+        let mut h = Handler::new(TrackerConfig::default(), None).unwrap();
+        h.set_target(&target).unwrap();
+        let (track, _) = h.process(&frames[0].0).unwrap();
+        assert_eq!(
+            (track.state, track.found),
+            (BallTrackState::Waiting, false),
+            "a frame captured before the target was given"
+        );
+        let (track, events) = h.process(&frames[1].0).unwrap();
+        assert!(track.found, "the frame after the target's stamp");
+        assert_eq!(events[0].kind, BallEventKind::Detected);
+
+        // A clear stamped between frames 2 and 3: frame 2 is still tracked.
+        let clear = BallTarget {
+            header: Header {
+                stamp_ns: stamp(2) + 1,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        h.set_target(&clear).unwrap();
+        let (track, _) = h.process(&frames[2].0).unwrap();
+        assert_eq!((track.state, track.found), (BallTrackState::Tracking, true));
+        let (track, _) = h.process(&frames[3].0).unwrap();
+        assert_eq!(track.state, BallTrackState::Waiting);
+        assert_eq!(h.targets_ahead_of_frames(), 0);
+
+        // A target stamped far ahead of the frames (another clock) applies at once, counted.
+        target.header.stamp_ns = stamp(4) + TARGET_LEAD.as_nanos() as i64 + 1_000_000;
+        h.set_target(&target).unwrap();
+        let (track, _) = h.process(&frames[4].0).unwrap();
+        assert!(track.found, "{track:?}");
+        assert_eq!(h.targets_ahead_of_frames(), 1);
+
+        // A bad stamped target is refused at once and changes nothing later.
+        let mut bad = target.clone();
+        bad.saturation = 2.0;
+        assert!(h.set_target(&bad).is_err());
+        let (track, _) = h.process(&frames[5].0).unwrap();
+        assert!(track.found);
     }
 }

@@ -247,24 +247,7 @@ impl BallTracker {
     /// Sets (or with `None` clears) the target. A new target starts detecting; clearing it
     /// returns to waiting.
     pub fn set_target(&mut self, target: Option<Target>) -> Result<(), TrackError> {
-        if let Some(t) = &target {
-            if !(t.hue_deg.is_finite() && (0.0..=1.0).contains(&t.saturation)) {
-                return Err(TrackError::InvalidTarget(format!(
-                    "hue {} deg, saturation {} (needs finite hue, saturation in [0, 1])",
-                    t.hue_deg, t.saturation
-                )));
-            }
-            if !(t.diameter_m.is_finite() && t.diameter_m > 0.0) {
-                return Err(TrackError::InvalidTarget(format!(
-                    "diameter {} m (needs > 0)",
-                    t.diameter_m
-                )));
-            }
-        }
-        self.target = target.map(|t| Target {
-            hue_deg: t.hue_deg.rem_euclid(360.0),
-            ..t
-        });
+        self.target = target.map(|t| t.checked()).transpose()?;
         self.track = None;
         self.detect_since_s = None;
         self.state = if self.target.is_some() {

@@ -6,6 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::tracker::TrackError;
+
 /// What to look for: an untextured ball of one colour and size (seed 001 §V.B).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Target {
@@ -15,6 +17,28 @@ pub struct Target {
     pub saturation: f32,
     /// Ball diameter, m.
     pub diameter_m: f64,
+}
+
+impl Target {
+    /// The target with its hue brought into `[0, 360)`, or why it cannot be tracked.
+    pub fn checked(self) -> Result<Target, TrackError> {
+        if !(self.hue_deg.is_finite() && (0.0..=1.0).contains(&self.saturation)) {
+            return Err(TrackError::InvalidTarget(format!(
+                "hue {} deg, saturation {} (needs finite hue, saturation in [0, 1])",
+                self.hue_deg, self.saturation
+            )));
+        }
+        if !(self.diameter_m.is_finite() && self.diameter_m > 0.0) {
+            return Err(TrackError::InvalidTarget(format!(
+                "diameter {} m (needs > 0)",
+                self.diameter_m
+            )));
+        }
+        Ok(Target {
+            hue_deg: self.hue_deg.rem_euclid(360.0),
+            ..self
+        })
+    }
 }
 
 /// The tracker's state (seed 001 §V.B).

@@ -144,26 +144,10 @@ fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointD
             })
         }
         "dynamixel" => {
-            let path = config
-                .servo_config
-                .as_ref()
-                .context("--driver dynamixel needs --servo-config <file.toml>")?;
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            // Drive only the joints the servo map names.
-            let table: toml::Table =
-                toml::from_str(&text).with_context(|| format!("in {}", path.display()))?;
-            let mapped: Vec<String> = table
-                .get("joints")
-                .and_then(|j| j.as_table())
-                .map(|t| t.keys().cloned().collect())
-                .unwrap_or_default();
-            let specs: Vec<JointSpec> = specs
-                .into_iter()
-                .filter(|s| mapped.contains(&s.name))
-                .collect();
-            let mut cfg = crate::dynamixel::DynamixelConfig::from_toml(&text, &specs)
-                .with_context(|| format!("in {}", path.display()))?;
+            let path = config.servo_config.as_ref().with_context(|| {
+                format!("--driver dynamixel needs --servo-config <file.toml> (Loki's: {EXAMPLE_SERVO_MAP})")
+            })?;
+            let (specs, mut cfg) = load_servo_map(path, specs)?;
             if let Some(port) = &config.port {
                 cfg.port.clone_from(port);
             }
@@ -185,8 +169,26 @@ fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointD
     }
 }
 
-/// Runs the component until shutdown.
-pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+/// The component ready to run: its flags, the robot model's path and the opened driver.
+pub struct Prepared {
+    config: Config,
+    urdf: PathBuf,
+    driver: Box<dyn JointDriver>,
+}
+
+impl std::fmt::Debug for Prepared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Prepared")
+            .field("config", &self.config)
+            .field("urdf", &self.urdf)
+            .field("driver", &self.driver.name())
+            .finish()
+    }
+}
+
+/// Checks the flags, loads the robot model and opens the driver (the servo map, the serial
+/// line): everything a restart could not fix fails here, before the component joins the bus.
+pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     anyhow::ensure!(
         config.rate_hz.is_finite() && config.rate_hz > 0.0 && config.rate_hz <= 1000.0,
         "--rate-hz must be in (0, 1000], got {}",
@@ -197,6 +199,52 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
         .with_context(|| format!("loading the robot model {}", urdf.display()))?;
     let specs = specs_from_model(&model, config.accel_time_s)?;
     let driver = open(&config, specs)?;
+    Ok(Prepared {
+        config,
+        urdf,
+        driver,
+    })
+}
+
+/// Where the repository keeps a commented servo map for Loki.
+pub const EXAMPLE_SERVO_MAP: &str = "models/loki_servos.example.toml";
+
+/// The servo map at `path`, checked against the robot's joints `specs`: the specs of the joints
+/// it maps (the only ones the dynamixel driver drives) and the driver's configuration.
+pub fn load_servo_map(
+    path: &std::path::Path,
+    specs: Vec<JointSpec>,
+) -> anyhow::Result<(Vec<JointSpec>, crate::dynamixel::DynamixelConfig)> {
+    let text = std::fs::read_to_string(path).with_context(|| {
+        format!(
+            "reading the servo map {} (a commented one for Loki: {EXAMPLE_SERVO_MAP})",
+            path.display()
+        )
+    })?;
+    // Drive only the joints the servo map names.
+    let table: toml::Table =
+        toml::from_str(&text).with_context(|| format!("in {}", path.display()))?;
+    let mapped: Vec<String> = table
+        .get("joints")
+        .and_then(|j| j.as_table())
+        .map(|t| t.keys().cloned().collect())
+        .unwrap_or_default();
+    let specs: Vec<JointSpec> = specs
+        .into_iter()
+        .filter(|s| mapped.contains(&s.name))
+        .collect();
+    let cfg = crate::dynamixel::DynamixelConfig::from_toml(&text, &specs)
+        .with_context(|| format!("in {}", path.display()))?;
+    Ok((specs, cfg))
+}
+
+/// Runs the component until shutdown.
+pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let Prepared {
+        config,
+        urdf,
+        driver,
+    } = prepared;
     let driver_name = driver.name();
     let joints = driver.joints().len();
     let mut motor = JointMotor::new(driver, config.lease_s)?;
@@ -361,17 +409,17 @@ impl interfaces::node::Component for JointMotorComponent {
         a limit or another client owns the joint). Drivers: `sim` (no hardware) or \
         `dynamixel` (Protocol 2.0 servos on a serial port).";
     type Config = Config;
-    type Prepared = Config;
+    type Prepared = Prepared;
 
     fn interface(_: &Config) -> Interface {
         interface()
     }
 
-    fn prepare(config: Config) -> anyhow::Result<Config> {
-        Ok(config)
+    fn prepare(config: Config) -> anyhow::Result<Prepared> {
+        prepare(config)
     }
 
-    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+    async fn run(bus: Bus, prepared: Prepared, shutdown: Shutdown) -> anyhow::Result<()> {
         run(bus, prepared, shutdown).await
     }
 }
@@ -386,6 +434,25 @@ mod tests {
             "/../../models/loki.urdf"
         ))
         .unwrap()
+    }
+
+    #[test]
+    fn the_example_servo_map_drives_lokis_neck_and_arms() {
+        let specs = specs_from_model(&loki(), 0.25).unwrap();
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../..")
+            .join(EXAMPLE_SERVO_MAP);
+        let (driven, cfg) = load_servo_map(&path, specs).unwrap();
+        let names: Vec<&str> = driven.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(driven.len(), 18, "{names:?}");
+        for j in ["neck_pitch", "neck_yaw", "left_elbow", "right_wrist_roll"] {
+            assert!(names.contains(&j), "{j} is not driven: {names:?}");
+        }
+        assert_eq!((cfg.port.as_str(), cfg.baud), ("/dev/ttyUSB0", 1_000_000));
+        // A missing map names the example.
+        let err =
+            load_servo_map(std::path::Path::new("/nonexistent/servos.toml"), vec![]).unwrap_err();
+        assert!(format!("{err:#}").contains(EXAMPLE_SERVO_MAP), "{err:#}");
     }
 
     #[test]

@@ -339,6 +339,10 @@ impl KinectSource {
         let (device, description) = loop {
             match open_device(&config.library, config.index, config.depth_mode) {
                 Err(e) if e.downcast_ref::<NotYet>().is_some() => {
+                    if interfaces::node::preflight() {
+                        // The simulated Kinect of the running graph writes it.
+                        return Err(interfaces::node::NotYetCheckable(e.to_string()).into());
+                    }
                     if !waited {
                         waited = true;
                         tracing::info!("{e}: waiting for it");

@@ -78,6 +78,11 @@ pub struct Config {
     /// Exit (0) once the game reached its final state.
     #[arg(long)]
     pub exit_when_finished: bool,
+    /// Keep the game's state here after every step and take the game up from it at start, so a
+    /// restarted Executive goes on where it was (under `robocog launch`: the component's state
+    /// folder, ROBOCOG_STATE_DIR). The touch game only.
+    #[arg(long, env = "ROBOCOG_STATE_DIR")]
+    pub state_dir: Option<PathBuf>,
 }
 
 impl Config {
@@ -406,6 +411,7 @@ mod tests {
             print_diagram: false,
             print_dot: false,
             exit_when_finished: false,
+            state_dir: None,
         };
         let (stop, shutdown) = Shutdown::new();
         let exec = tokio::spawn(run_touch(exec_bus, config, Settings::default(), shutdown));

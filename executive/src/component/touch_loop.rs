@@ -268,6 +268,93 @@ impl TouchOut {
     }
 }
 
+/// The touch game's resume record on disk (`<state dir>/touch.json`), rewritten (atomically)
+/// whenever it changes and removed once the game is over.
+pub(super) struct ResumeFile {
+    path: Option<std::path::PathBuf>,
+    last: Option<touch::resume::Resume>,
+    warned: bool,
+}
+
+impl ResumeFile {
+    pub(super) fn new(dir: Option<&std::path::Path>) -> ResumeFile {
+        ResumeFile {
+            path: dir.map(|d| d.join("touch.json")),
+            last: None,
+            warned: false,
+        }
+    }
+
+    /// The record an earlier process left, if any and usable (a bad one is logged and ignored).
+    pub(super) fn load(&mut self) -> Option<touch::resume::Resume> {
+        let path = self.path.as_ref()?;
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+            Err(e) => {
+                tracing::warn!(
+                    "cannot read the game's state {}: {e}; starting afresh",
+                    path.display()
+                );
+                return None;
+            }
+        };
+        match touch::resume::Resume::from_json(&text) {
+            Ok(r) => {
+                tracing::info!(
+                    "found the game's state in {}: {}",
+                    path.display(),
+                    text.trim()
+                );
+                self.last = Some(r.clone());
+                Some(r)
+            }
+            Err(e) => {
+                tracing::warn!(
+                    "the game's state {} is unusable ({e}); starting afresh",
+                    path.display()
+                );
+                None
+            }
+        }
+    }
+
+    /// Keeps `record` (`None`: the game is over, nothing to take up).
+    pub(super) fn save(&mut self, record: Option<touch::resume::Resume>, bus: &Bus) {
+        let Some(path) = &self.path else { return };
+        if record == self.last {
+            return;
+        }
+        let result = match &record {
+            Some(r) => (|| {
+                if let Some(dir) = path.parent() {
+                    std::fs::create_dir_all(dir)?;
+                }
+                let tmp = path.with_extension("json.tmp");
+                std::fs::write(&tmp, r.to_json())?;
+                std::fs::rename(&tmp, path)
+            })(),
+            None => match std::fs::remove_file(path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+                _ => Ok(()),
+            },
+        };
+        match result {
+            Ok(()) => self.last = record,
+            Err(e) => {
+                bus.counters().incr("state_write_errors");
+                if !self.warned {
+                    self.warned = true;
+                    tracing::warn!(
+                        "cannot keep the game's state in {}: {e} (a restart would start afresh)",
+                        path.display()
+                    );
+                }
+            }
+        }
+    }
+}
+
 pub(super) fn snapshot_of(game: &TouchGame, mermaid: &str) -> Snapshot {
     let m = game.machine();
     Snapshot {
@@ -323,8 +410,13 @@ pub(super) async fn run_touch(
         _ = shutdown.wait() => return Ok(()),
         _ = clock.started() => {}
     }
-    let o = game.start(bus_now(&bus));
+    let mut kept = ResumeFile::new(config.state_dir.as_deref());
+    let o = match kept.load() {
+        Some(record) => game.resume(&record, bus_now(&bus)),
+        None => game.start(bus_now(&bus)),
+    };
     out.emit(o).await?;
+    kept.save(game.resume_record(), &bus);
     *lock(&snapshot) = snapshot_of(&game, &mermaid);
     let mut watch = TrackerWatch::default();
     loop {
@@ -430,6 +522,7 @@ pub(super) async fn run_touch(
             let o = game.ball_event(&lost, bus_now(&bus));
             out.emit(o).await?;
         }
+        kept.save(game.resume_record(), &bus);
         *lock(&snapshot) = snapshot_of(&game, &mermaid);
         if out.finished && config.exit_when_finished {
             // Let the last messages and the rest postures go out (on the wall clock: this waits

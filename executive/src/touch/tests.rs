@@ -747,3 +747,156 @@ fn what_is_heard_is_logged_after_the_timers_that_fell_due_before_it() {
     assert_eq!(kinds[heard + 1], "state");
     assert_eq!(kinds.iter().filter(|k| **k == "state").count(), 3);
 }
+
+/// The game `g` left, taken up by a fresh game at `now` (a restarted Executive): the record
+/// through its JSON, as on disk.
+fn restarted(g: &TouchGame, now: f64) -> (TouchGame, Outcome) {
+    let record = g
+        .resume_record()
+        .expect("a game that is not over leaves a record");
+    let record = resume::Resume::from_json(&record.to_json()).unwrap();
+    let mut fresh = TouchGame::new(TouchSettings::default()).unwrap();
+    let o = fresh.resume(&record, t(now));
+    (fresh, o)
+}
+
+fn targets(o: &Outcome) -> Vec<&BallTarget> {
+    o.outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::SetBallTarget(b) => Some(b),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_restarted_executive_takes_up_a_waiting_game_silently() {
+    let g = game();
+    let (fresh, o) = restarted(&g, 1.0);
+    assert_eq!(active(&fresh), [state::WAITING]);
+    assert!(o.said().is_empty(), "{:?}", o.said());
+    // And the first command works as in a new game.
+    let mut fresh = fresh;
+    let o = fresh.command(&cmd(Command::Play), t(2.0));
+    assert_eq!(o.said(), [say::PLAY_ACK]);
+}
+
+#[test]
+fn a_restarted_executive_takes_up_an_idle_game_with_one_line() {
+    let mut g = game();
+    g.command(&cmd(Command::Play), t(1.0));
+    let (mut fresh, o) = restarted(&g, 2.0);
+    assert_eq!(o.said(), [resume::BACK]);
+    assert!(active(&fresh).contains(&state::EYES_IDLE.to_string()));
+    assert!(active(&fresh).contains(&state::RESTING.to_string()));
+    // "scan the ball" after the restart is carried out, not refused.
+    let o = fresh.command(&cmd(Command::ScanBall), t(3.0));
+    assert_eq!(o.said(), [say::LOOKING]);
+    assert_eq!(targets(&o).len(), 1);
+}
+
+#[test]
+fn a_restarted_executive_looks_for_the_ball_again_when_it_was_searching_or_tracking() {
+    let mut searching = game();
+    searching.command(&cmd(Command::Play), t(1.0));
+    searching.command(&cmd(Command::ScanBall), t(2.0));
+    for (what, g) in [("searching", searching), ("tracking", tracking())] {
+        let (mut fresh, o) = restarted(&g, 10.0);
+        assert_eq!(o.said(), [resume::BACK], "{what}");
+        assert!(
+            active(&fresh)
+                .iter()
+                .any(|s| s.starts_with(state::SEARCHING)),
+            "{what}: {:?}",
+            active(&fresh)
+        );
+        // The tracker gets its target again (it finds the ball again from scratch).
+        assert!(targets(&o).iter().any(|b| b.active), "{what}: {o:?}");
+        fresh.ball_track(&track([0.6, 0.1, 0.78]), t(10.5));
+        let o = fresh.ball_event(&ball(BallEventKind::Detected), t(10.6));
+        assert!(
+            active(&fresh).contains(&state::TRACKING.to_string()),
+            "{what}"
+        );
+        assert_eq!(o.said(), [say::SEE_IT], "{what}");
+        // "touch the ball" now works: the game knows the ball.
+        let o = fresh.command(&cmd(Command::TouchBall), t(11.0));
+        assert_eq!(reaches(&o).len(), 1, "{what}: {o:?}");
+    }
+}
+
+#[test]
+fn a_restarted_executive_reaches_again_once_it_sees_the_ball_when_the_arm_was_at_it() {
+    let (mut g, arm_goal) = reaching();
+    // Moving, and touching (reached).
+    let (moving, _) = reaching();
+    g.reach_status(&status(arm_goal, ReachState::Reached), t(5.0));
+    assert!(active(&g).contains(&state::TOUCHING.to_string()));
+    for (what, g) in [("moving", moving), ("touching", g)] {
+        let old_ids = g.resume_record().unwrap().last_goal_id;
+        let (mut fresh, o) = restarted(&g, 6.0);
+        assert_eq!(o.said(), [resume::BACK], "{what}");
+        assert!(
+            reaches(&o).iter().all(|r| r.body_part == "neck"),
+            "{what}: no arm goal before the ball is seen"
+        );
+        fresh.ball_track(&track([0.6, 0.1, 0.78]), t(6.4));
+        let o = fresh.ball_event(&ball(BallEventKind::Detected), t(6.5));
+        let arm: Vec<_> = reaches(&o)
+            .into_iter()
+            .filter(|r| r.body_part != "neck")
+            .collect();
+        assert_eq!(
+            arm.len(),
+            1,
+            "{what}: the touch is carried out again: {o:?}"
+        );
+        assert!(
+            arm[0].id > old_ids,
+            "{what}: goal ids go on ({} vs {old_ids})",
+            arm[0].id
+        );
+        assert!(
+            active(&fresh).contains(&state::MOVING.to_string()),
+            "{what}"
+        );
+        // Only "I see the ball" on the way: the reach is not announced again.
+        assert_eq!(o.said(), [say::SEE_IT], "{what}");
+        // The old process's goal's status means nothing to the new one.
+        let o = fresh.reach_status(&status(arm_goal, ReachState::Unreachable), t(7.0));
+        assert!(o.said().is_empty(), "{what}: {:?}", o.said());
+        assert!(
+            active(&fresh).contains(&state::MOVING.to_string()),
+            "{what}"
+        );
+    }
+}
+
+#[test]
+fn a_restarted_executive_leaves_a_homing_arm_at_rest_and_a_finished_game_leaves_no_record() {
+    let (mut g, arm_goal) = reaching();
+    g.reach_status(&status(arm_goal, ReachState::Reached), t(5.0));
+    g.command(&cmd(Command::YouTouchedIt), t(5.5));
+    assert!(active(&g).contains(&state::HOMING.to_string()));
+    let (mut fresh, o) = restarted(&g, 6.0);
+    assert_eq!(o.said(), [resume::BACK]);
+    assert!(active(&fresh).contains(&state::RESTING.to_string()));
+    fresh.ball_event(&ball(BallEventKind::Detected), t(6.5));
+    assert!(
+        active(&fresh).contains(&state::RESTING.to_string()),
+        "no reach of its own"
+    );
+    fresh.command(&cmd(Command::Quit), t(7.0));
+    assert!(fresh.is_finished());
+    assert_eq!(fresh.resume_record(), None);
+}
+
+#[test]
+fn a_record_of_another_machine_or_garbage_is_refused() {
+    assert!(resume::Resume::from_json("{").is_err());
+    let mut r = game().resume_record().unwrap();
+    r.machine = "nao_coach".into();
+    let e = resume::Resume::from_json(&r.to_json()).unwrap_err();
+    assert!(e.contains("nao_coach"), "{e}");
+}

@@ -1,4 +1,7 @@
-//! `robocog check <manifest>`: validate a graph without running it.
+//! `robocog check <manifest>`: validate a graph without running it: the manifest, the binaries,
+//! the topics and services between them, the hardware claims, and (unless `--no-preflight`)
+//! whether each component could start as configured: its files, models and devices, as the
+//! component itself checks them at start (`--preflight`).
 
 use crate::manifest::{Manifest, Overrides};
 use std::path::PathBuf;
@@ -9,6 +12,10 @@ pub struct Args {
     pub manifest: PathBuf,
     #[command(flatten)]
     pub overrides: Overrides,
+    /// Skip asking each component whether it could start as configured (`--preflight`: its
+    /// files, models and devices); check the graph's structure only.
+    #[arg(long)]
+    pub no_preflight: bool,
 }
 
 /// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
@@ -20,7 +27,7 @@ pub fn execute(args: Args) -> i32 {
             return 1;
         }
     };
-    match crate::check::check(&manifest) {
+    match crate::check::check(&manifest, !args.no_preflight) {
         Ok(report) => {
             for w in &report.warnings {
                 eprintln!("warning: {w}");

@@ -21,6 +21,41 @@ pub struct Args {
     /// Colour the component prefixes: auto, always, never.
     #[arg(long, default_value = "auto")]
     pub color: String,
+    /// Where components keep their state (each in `<root>/<graph>/<namespace>/<component>`,
+    /// given to it as ROBOCOG_STATE_DIR), so that a restarted component takes up where it was
+    /// (default: $XDG_STATE_HOME/robocog, else ~/.local/state/robocog).
+    #[arg(long, env = "ROBOCOG_STATE_ROOT")]
+    pub state_root: Option<PathBuf>,
+    /// Take up the state an earlier launch of this graph and namespace left (one that did not
+    /// end cleanly: the launcher or the machine died). Without it the graph starts afresh and
+    /// what an earlier launch left is moved aside to `<namespace>.previous`.
+    #[arg(long)]
+    pub resume: bool,
+}
+
+/// A graph's name as one folder name.
+fn path_segment(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() { "graph".into() } else { s }
+}
+
+/// The default root of the components' state folders.
+fn default_state_root() -> PathBuf {
+    std::env::var_os("XDG_STATE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/state")))
+        .unwrap_or_else(std::env::temp_dir)
+        .join("robocog")
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
@@ -31,7 +66,9 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             return Ok(2);
         }
     };
-    match crate::check::check(&manifest) {
+    // The graph's structure only: a component whose files or devices are missing says so
+    // itself at start (exit 78), and the launcher stops at once with its message.
+    match crate::check::check(&manifest, false) {
         Ok(report) => {
             for w in &report.warnings {
                 eprintln!("warning: {w}");
@@ -58,12 +95,19 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         "never" => false,
         _ => std::io::stdout().is_terminal(),
     };
+    let state_dir = args
+        .state_root
+        .unwrap_or_else(default_state_root)
+        .join(path_segment(&manifest.name))
+        .join(&namespace);
     launch(
         manifest,
         LaunchOptions {
             namespace,
             router,
             color,
+            state_dir,
+            resume: args.resume,
         },
     )
     .await

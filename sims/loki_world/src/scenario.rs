@@ -52,6 +52,10 @@ pub const BUILT_IN: &[(&str, &str)] = &[
         "tracker_restart",
         include_str!("../scenarios/tracker_restart.toml"),
     ),
+    (
+        "restart_mid_game",
+        include_str!("../scenarios/restart_mid_game.toml"),
+    ),
 ];
 
 #[derive(Debug, thiserror::Error)]
@@ -75,7 +79,7 @@ pub enum ScenarioError {
     #[error("scenario {origin}: {why}")]
     InvalidBall { origin: String, why: String },
     #[error(
-        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, tracker_restart)"
+        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, tracker_restart, restart_mid_game)"
     )]
     Unknown(String),
 }

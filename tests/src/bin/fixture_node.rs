@@ -44,6 +44,10 @@ struct Args {
     /// Keep running after SIGTERM (only SIGKILL stops it).
     #[arg(long)]
     ignore_sigterm: bool,
+    /// A file it cannot start without: missing, it exits with EX_CONFIG (78) as a component's
+    /// `prepare` does, `--preflight` included.
+    #[arg(long)]
+    needs_file: Option<std::path::PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -55,7 +59,17 @@ fn main() -> ExitCode {
         Role::EchoServer => interface.serves(&topics::ECHO),
         Role::Idle | Role::Silent => interface,
     };
-    if matches!(args.role, Role::Silent) && !args.node.describe {
+    if !args.node.describe
+        && let Some(f) = &args.needs_file
+        && !f.exists()
+    {
+        eprintln!(
+            "fixture_node: cannot start: no such file {} (a configuration error)",
+            f.display()
+        );
+        return ExitCode::from(node::EX_CONFIG);
+    }
+    if matches!(args.role, Role::Silent) && !args.node.describe && !args.node.preflight {
         std::thread::sleep(Duration::from_secs(3600));
         return ExitCode::SUCCESS;
     }

@@ -516,12 +516,26 @@ impl Ik {
     }
 }
 
-/// Runs the component until shutdown.
-pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
+/// The component ready to run: its checked flags and the robot model, loaded.
+#[derive(Debug)]
+pub struct Prepared {
+    config: Config,
+    urdf: std::path::PathBuf,
+    body: BodyIk,
+}
+
+/// Checks the flags and loads the robot model: what a restart could not fix fails here.
+pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     config.check()?;
     let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
     let body = BodyIk::from_urdf_file(&urdf)
         .with_context(|| format!("loading the robot model {}", urdf.display()))?;
+    Ok(Prepared { config, urdf, body })
+}
+
+/// Runs the component until shutdown.
+pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
+    let Prepared { config, urdf, body } = prepared;
     let states = bus.subscriber(&topics::BODY_JOINT_STATES).await?;
     let goals = bus.subscriber(&topics::BODY_REACH).await?;
     let status = bus.publisher(&topics::BODY_REACH_STATUS).await?;
@@ -584,17 +598,17 @@ impl interfaces::node::Component for BodyInverseKinematics {
         Reached, Unreachable, Cancelled or Failed on body/reach_status. `follow` goals \
         track a moving DR frame (the ball).";
     type Config = Config;
-    type Prepared = Config;
+    type Prepared = Prepared;
 
     fn interface(_: &Config) -> Interface {
         interface()
     }
 
-    fn prepare(config: Config) -> anyhow::Result<Config> {
-        Ok(config)
+    fn prepare(config: Config) -> anyhow::Result<Prepared> {
+        prepare(config)
     }
 
-    async fn run(bus: Bus, prepared: Config, shutdown: Shutdown) -> anyhow::Result<()> {
+    async fn run(bus: Bus, prepared: Prepared, shutdown: Shutdown) -> anyhow::Result<()> {
         run(bus, prepared, shutdown).await
     }
 }

@@ -1,0 +1,152 @@
+//! Taking a touch game up again after the Executive restarts.
+//!
+//! After every step the Executive writes a [`Resume`] record (what the game is doing, in the
+//! person's terms) into its state folder. A restarted Executive reads it and brings a fresh
+//! machine to the same place by its own transitions, with the person's commands that are still
+//! in force: playing ("let's play"), looking for or at the ball ("scan the ball": the target goes
+//! to the tracker again, which finds the ball again within a few frames), and the arm at the ball
+//! ("touch the ball", carried out again once the ball is seen). What the robot would say on the
+//! way is left out: it says one short line, [`say::BACK`], and only if a game was on.
+//!
+//! Goal ids go on from where they were, so a status of the old process's goals is never taken
+//! for one of the new goals.
+
+use serde::{Deserialize, Serialize};
+
+use super::*;
+
+/// What the robot says when it takes a game up again.
+pub const BACK: &str = "Sorry, I was away for a moment. Let's go on.";
+
+/// Where the eyes were.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Eyes {
+    Idle,
+    /// Searching, tracking, or the ball out of sight: looking for or at the ball.
+    OnTheBall,
+}
+
+/// Where the arm was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Arm {
+    /// Resting or going home.
+    AtRest,
+    /// Reaching, touching or following the ball.
+    AtTheBall,
+}
+
+/// The game as the person sees it, written after every step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Resume {
+    /// The machine it belongs to ([`MACHINE`]).
+    pub machine: String,
+    /// The game is on (the person said "let's play" and not "quit").
+    pub playing: bool,
+    pub eyes: Eyes,
+    pub arm: Arm,
+    /// The last goal id used.
+    pub last_goal_id: u64,
+}
+
+impl Resume {
+    /// The record as JSON (one line).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+
+    /// A record read back, or why it cannot be used.
+    pub fn from_json(text: &str) -> Result<Resume, String> {
+        let r: Resume = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if r.machine != MACHINE {
+            return Err(format!(
+                "a record of machine {:?}, not {MACHINE:?}",
+                r.machine
+            ));
+        }
+        Ok(r)
+    }
+}
+
+impl TouchGame {
+    /// The record to keep after this step: `None` once the game is over (nothing to take up).
+    pub fn resume_record(&self) -> Option<Resume> {
+        let m = &self.machine;
+        if m.is_finished() {
+            return None;
+        }
+        let on = |s: &str| m.is_active(s);
+        Some(Resume {
+            machine: MACHINE.into(),
+            playing: on(state::PLAYING),
+            eyes: if on(state::SEARCHING) || on(state::TRACKING) || on(state::OUT_OF_SIGHT) {
+                Eyes::OnTheBall
+            } else {
+                Eyes::Idle
+            },
+            arm: if on(state::REACHING) {
+                Arm::AtTheBall
+            } else {
+                Arm::AtRest
+            },
+            last_goal_id: self.ctx.next_id,
+        })
+    }
+
+    /// Starts the game where `record` says it was (instead of [`TouchGame::start`]). A record of
+    /// a game that was waiting starts it as new, silently.
+    pub fn resume(&mut self, record: &Resume, now: Duration) -> Outcome {
+        self.ctx.next_id = self.ctx.next_id.max(record.last_goal_id);
+        let mut out = self.start(now);
+        if !record.playing {
+            return out;
+        }
+        let quiet = |o: Outcome| Outcome {
+            steps: o.steps,
+            outputs: o
+                .outputs
+                .into_iter()
+                .filter(|x| !matches!(x, Output::Say { .. }))
+                .collect(),
+        };
+        out.outputs.push(Output::Log(LogLine {
+            kind: "anomaly",
+            text: format!(
+                "the Executive restarted: taking the game up again (eyes {:?}, arm {:?})",
+                record.eyes, record.arm
+            ),
+            distance_m: -1.0,
+        }));
+        out.extend(quiet(self.send("command:play", Input::None, now)));
+        if record.eyes == Eyes::OnTheBall {
+            out.extend(quiet(self.send("command:scan_ball", Input::None, now)));
+        }
+        self.resume_touch = record.arm == Arm::AtTheBall;
+        out.outputs.push(Output::Say {
+            text: BACK.into(),
+            priority: Priority::High,
+        });
+        out
+    }
+
+    /// Carries out a "touch the ball" taken up from before a restart, once the ball is seen.
+    pub(super) fn resume_pending(&mut self, now: Duration) -> Outcome {
+        if !(self.resume_touch && self.ctx.ball_seen) {
+            return Outcome::default();
+        }
+        self.resume_touch = false;
+        if !self.machine.is_active(state::PLAYING) {
+            return Outcome::default();
+        }
+        let o = self.send("command:touch_ball", Input::None, now);
+        Outcome {
+            steps: o.steps,
+            outputs: o
+                .outputs
+                .into_iter()
+                .filter(|x| !matches!(x, Output::Say { .. }))
+                .collect(),
+        }
+    }
+}
