@@ -2,7 +2,8 @@
 # The command panel: a click in headless Chromium (GoToPosition, then a point of the field) to the
 # checked command on nao/command, through the panel's WebSocket, the bus and the Executive's coach
 # machine (which answers and checks it against the game state first); p50/p99 over N clicks
-# (default 100, within one 90 s attempt: scripts/bench panel --clicks 200). The last hop, nao/command to the robot's UDP
+# (default 100: scripts/bench panel --clicks 200), in one attack made long enough for them
+# (attack_s=3600: the simulated game's default 90 s ended the clicks of a slow machine). The last hop, nao/command to the robot's UDP
 # packet, is scripts/bench coach's. The graph is launch/panel_coach.toml with the simulated field
 # (its GameController brings the game to PLAYING, when the coach lets the robot move).
 set -euo pipefail
@@ -25,7 +26,7 @@ mkdir -p "$work"
 log="$work/launch.log"
 step "starting the graph (simulated field, bridge, coach machine, panel on 127.0.0.1:$http_port)"
 "$BIN/robocog" launch launch/panel_coach.toml --namespace "$ns" --router "tcp/127.0.0.1:$router_port" \
-  --color never --set falls_per_min=0 --set command_port="$cmd_port" --set debug_port="$debug_port" --set gc_port="$gc_port" \
+  --color never --set falls_per_min=0 --set attack_s=3600 --set command_port="$cmd_port" --set debug_port="$debug_port" --set gc_port="$gc_port" \
   --set panel_http="127.0.0.1:$http_port" >"$log" 2>&1 &
 launcher=$!
 trap 'kill -TERM "$launcher" 2>/dev/null || true; wait "$launcher" 2>/dev/null || true' EXIT

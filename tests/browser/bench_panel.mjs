@@ -52,9 +52,12 @@ try {
   for (let i = 0; i < clicks + 5; i++) {
     const [x, y] = targets[i % targets.length];
     await page.keyboard.press('g');
+    // The coach moves the robot in PLAYING only: a click outside it is refused, so say so.
+    const state = await page.textContent('#game-state');
+    if (!state.startsWith('PLAYING')) fail(`click ${i}: the game left PLAYING (${state}); the bench needs a longer attack`);
     const packet = new Promise((res, rej) => {
       waiting = res;
-      setTimeout(() => rej(new Error(`no checked command on nao/command for click ${i} within 5 s`)), 5000);
+      setTimeout(() => rej(new Error(`no checked command on nao/command for click ${i} within 5 s (game state ${state})`)), 5000);
     });
     const t0 = now();
     await clickField(page, x, y);

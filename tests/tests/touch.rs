@@ -418,11 +418,7 @@ async fn the_executive_killed_at(trigger: &str) -> Game {
             .any(|l| l.contains("the Executive restarted: taking the game up again")),
         "the restarted Executive did not take the game up:\n{out}"
     );
-    let back = game
-        .said
-        .iter()
-        .filter(|s| s.contains("away for a moment"))
-        .count();
+    let back = game.said.iter().filter(|s| s.contains("i'm back")).count();
     assert_eq!(back, 1, "one line about the restart: {:?}", game.said);
     assert!(
         !game.said_any("not seen the ball") && !game.said_any("can't reach"),

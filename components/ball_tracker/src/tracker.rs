@@ -87,6 +87,12 @@ impl Default for TrackerConfig {
     }
 }
 
+/// The shortest time between two frames over which the image velocity is measured, s.
+pub const MIN_VELOCITY_DT_S: f32 = 0.005;
+/// The fastest a tracked ball is taken to cross the image, px/s (a ball thrown across a 640 px
+/// image in a fifth of a second).
+pub const MAX_IMAGE_SPEED_PX_PER_S: f32 = 3200.0;
+
 /// Errors of [`BallTracker::process`]; the tracker's state is unchanged by a rejected frame.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TrackError {
@@ -399,14 +405,25 @@ impl BallTracker {
         };
         match result {
             Some((win, m)) if m.size_ok => {
-                if dt > 0.0 {
+                // Frames closer in time than MIN_VELOCITY_DT_S (two frames rendered from one
+                // joint state are stamped 1 ns apart, below an f64 second's resolution) would
+                // turn a sub-pixel jitter into an enormous speed, and the next prediction far
+                // off the ball: they leave the velocity as it is.
+                if dt >= MIN_VELOCITY_DT_S {
                     let vx = (win.cx - track.last_good_win.cx) / dt;
                     let vy = (win.cy - track.last_good_win.cy) / dt;
-                    // Light smoothing of the velocity estimate.
-                    track.velocity_px_per_s = [
+                    // Light smoothing of the velocity estimate, bounded.
+                    let v = [
                         0.5 * track.velocity_px_per_s[0] + 0.5 * vx,
                         0.5 * track.velocity_px_per_s[1] + 0.5 * vy,
                     ];
+                    let speed = v[0].hypot(v[1]);
+                    let k = if speed > MAX_IMAGE_SPEED_PX_PER_S {
+                        MAX_IMAGE_SPEED_PX_PER_S / speed
+                    } else {
+                        1.0
+                    };
+                    track.velocity_px_per_s = [v[0] * k, v[1] * k];
                 }
                 track.win = win;
                 track.last_good_win = win;

@@ -101,6 +101,40 @@ fn static_ball_centre_within_1cm_at_1m() {
     }
 }
 
+#[test]
+fn frames_stamped_nanoseconds_apart_do_not_throw_the_track_off_a_still_ball() {
+    // The game's camera stamps a frame with the joint state it was rendered from; when the joint
+    // states come slower than the frames (a busy machine), frames a few nanoseconds apart follow
+    // each other. At epoch-scale stamps a few ns are below an f64's resolution, so the frames'
+    // times in seconds are equal or one ulp (about 0.24 us) apart: the pixel jitter between two
+    // such frames is no speed, and the still ball stays found in every frame. The stamps below
+    // are chosen so that each pair lands one ulp apart, as the header's `stamp_s()` converts them.
+    let cam = camera();
+    let mut r = SimRenderer::new(cam, SensorModel::default(), 5);
+    let mut t = tracker();
+    let scene = Scene {
+        ball: Some(ball(Point3::new(0.9, 0.1, 0.95))),
+        ..Scene::default()
+    };
+    let base_ns: i64 = 1_795_470_140_000_000_000;
+    for i in 0..60 {
+        // Two frames per joint state: 33 ms apart, then 2 ns later.
+        let joint_ns = (base_ns + (i / 2) * 33_333_333) / 256 * 256 + 127;
+        let stamp_ns = joint_ns + (i % 2) * 2;
+        let now = interfaces::Header {
+            stamp_ns,
+            ..Default::default()
+        }
+        .stamp_s();
+        let out = t.process(&r.render(&scene, now), now).unwrap();
+        assert_eq!(out.state, TrackState::Tracking, "frame {i}");
+        assert!(
+            out.window.is_some(),
+            "frame {i}: the still ball was not found"
+        );
+    }
+}
+
 /// Position on an ellipse (world y-z plane, 0.3 x 0.18 m) around (0.95, 0, 1.0), at about
 /// `speed` m/s.
 fn circle(t_s: f64, speed: f64) -> (Point3<f64>, Vector3<f64>) {

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use super::*;
 
 /// What the robot says when it takes a game up again.
-pub const BACK: &str = "Sorry, I was away for a moment. Let's go on.";
+pub const BACK: &str = "Sorry, I'm back.";
 
 /// Where the eyes were.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

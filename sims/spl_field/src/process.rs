@@ -181,9 +181,12 @@ pub struct Flags {
     /// Simulated seconds per real second.
     #[arg(long, default_value_t = 1.0)]
     pub time_scale: f64,
-    /// Seconds in INITIAL, READY and SET before the 90 s attack starts.
+    /// Seconds in INITIAL, READY and SET before the attack starts.
     #[arg(long)]
     pub pre_game_s: Option<f64>,
+    /// Length of the attack (PLAYING, simulated s) before the game is FINISHED.
+    #[arg(long, default_value_t = 90.0)]
+    pub attack_s: f64,
     /// Falls per minute per robot (0: never).
     #[arg(long)]
     pub falls_per_min: Option<f64>,
@@ -227,6 +230,12 @@ impl interfaces::node::Component for SplFieldComponent {
             let p = p.max(0.0) / 3.0;
             (sim.initial_s, sim.ready_s, sim.set_s) = (p, p, p);
         }
+        anyhow::ensure!(
+            config.attack_s.is_finite() && config.attack_s > 0.0,
+            "--attack-s must be a positive number of seconds, got {}",
+            config.attack_s
+        );
+        sim.attack_s = config.attack_s;
         if let Some(f) = config.falls_per_min {
             sim.falls_per_min = f.max(0.0);
         }
