@@ -151,7 +151,7 @@ pub fn preflight(
         .map_or(said.as_str(), |(_, rest)| rest);
     let said = said
         .trim_end()
-        .trim_end_matches(|c| c == ')')
+        .trim_end_matches(')')
         .rsplit_once(" (a configuration error")
         .map_or(said.trim_end(), |(s, _)| s)
         .to_string();

@@ -432,7 +432,7 @@ fn the_real_profile_without_its_servo_map_is_reported_before_the_launch() {
         .find(|l| l.contains("component \"joint_motor\" cannot start (exit 78)"))
         .unwrap_or_else(|| panic!("joint_motor's missing servo map is not reported:\n{err}"));
     assert!(
-        err.contains("reading the servo map") && err.contains("models/loki_servos.example.toml"),
-        "{err}"
+        line.contains("reading the servo map") && line.contains("models/loki_servos.example.toml"),
+        "{line}"
     );
 }
