@@ -436,6 +436,67 @@ async fn the_executive_killed_at(trigger: &str) -> Game {
     game
 }
 
+/// `component` killed while the robot looks at the ball, during the `restart_mid_game`
+/// scenario's pause: the launcher restarts it, the person says "touch the ball" once, and the
+/// game goes on to its end without a repeated command.
+async fn killed_while_tracking(component: &str) -> Game {
+    let game = play_with(
+        "restart_mid_game",
+        &[],
+        Duration::from_secs(200),
+        Some(("person: sees gaze within", component)),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    let out = game.output.join("\n");
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains(&format!("{component} stopped")) && l.contains("restart 1/")),
+        "no restart of {component} in the output:\n{out}"
+    );
+    assert_eq!(
+        game.output
+            .iter()
+            .filter(|l| l.contains("says it again"))
+            .count(),
+        0,
+        "the person had to repeat herself after {component} was killed:\n{out}"
+    );
+    game
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_joint_motor_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("joint_motor").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_inverse_kinematics_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("body_inverse_kinematics").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_camera_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("rgbd").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_speech_recognition_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("speech_recognition").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_dialog_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("dialogs").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_speech_generator_is_restarted_and_the_game_carries_on() {
+    killed_while_tracking("speech_generator").await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_executive_takes_up_a_tracking_game() {
     the_executive_killed_at("person: sees gaze within").await;
