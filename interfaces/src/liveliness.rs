@@ -153,3 +153,86 @@ mod tests {
         assert_eq!(parse("n1", "robocog/n1/_live/z/a/b/c"), None);
     }
 }
+
+/// The components subscribed to one topic, kept current from their liveliness tokens (see
+/// [`Readers::watch`]). Tools (`robocog record`, `topic echo`, the viewer) subscribe without a
+/// token and never count.
+pub struct Readers {
+    rx: tokio::sync::watch::Receiver<std::collections::BTreeSet<String>>,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+}
+
+impl std::fmt::Debug for Readers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Readers({:?})", self.now())
+    }
+}
+
+impl Readers {
+    /// Watch which components of `bus`'s namespace subscribe to `topic`.
+    pub async fn watch<T: crate::msg::Message>(
+        bus: &crate::Bus,
+        topic: &crate::topic::Topic<T>,
+    ) -> Result<Readers, crate::bus::BusError> {
+        let ns = bus.namespace().to_string();
+        let (tx, rx) = tokio::sync::watch::channel(std::collections::BTreeSet::new());
+        // One entry per token key (a component may hold several subscriptions of one topic).
+        let keys: std::sync::Mutex<std::collections::BTreeMap<String, String>> = Default::default();
+        let name = topic.name().to_string();
+        let subscriber = bus
+            .session()
+            .liveliness()
+            .declare_subscriber(format!("robocog/{ns}/_live/s/**"))
+            .history(true)
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str().to_string();
+                let Some(Token::Subscriber {
+                    component, topic, ..
+                }) = parse(&ns, &key)
+                else {
+                    return;
+                };
+                if topic != name {
+                    return;
+                }
+                let mut keys = keys.lock().unwrap_or_else(|p| p.into_inner());
+                match sample.kind() {
+                    zenoh::sample::SampleKind::Put => keys.insert(key, component),
+                    zenoh::sample::SampleKind::Delete => keys.remove(&key),
+                };
+                let now: std::collections::BTreeSet<String> = keys.values().cloned().collect();
+                tx.send_if_modified(|set| {
+                    let changed = *set != now;
+                    *set = now;
+                    changed
+                });
+            })
+            .await
+            .map_err(|e| crate::bus::BusError::Zenoh {
+                what: "watching the topic's readers".into(),
+                reason: e.to_string(),
+            })?;
+        Ok(Readers {
+            rx,
+            _subscriber: subscriber,
+        })
+    }
+
+    /// The components subscribed now.
+    pub fn now(&self) -> std::collections::BTreeSet<String> {
+        self.rx.borrow().clone()
+    }
+
+    /// Whether any of `names` is subscribed now.
+    pub fn any_of(&self, names: &[String]) -> bool {
+        let set = self.rx.borrow();
+        names.iter().any(|n| set.contains(n))
+    }
+
+    /// Wait for the next change.
+    pub async fn changed(&mut self) {
+        if self.rx.changed().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    }
+}

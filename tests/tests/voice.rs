@@ -49,7 +49,8 @@ external_inputs = ["audio/in"]
 [[component]]
 name = "dialogs"
 binary = "{}"
-args = ["--high", "0.7", "--low", "0.3"]
+# The test reads game/command itself (there is no Executive here).
+args = ["--high", "0.7", "--low", "0.3", "--command-readers", "test-voice"]
 external_inputs = ["game/answer"]
 
 [[component]]

@@ -127,8 +127,18 @@ pub struct Dialog {
     /// Times of recent low-confidence utterances.
     misses: Vec<f64>,
     speaking: bool,
+    /// When the robot's current sentence ends at the latest (its audio's duration and a margin
+    /// after it started): a speech generator that dies mid-sentence never says it stopped, and
+    /// the dialog must not stay deaf.
+    speaking_until_s: f64,
     quiet_since_s: f64,
 }
+
+/// How long after its audio's end a sentence still counts as spoken (the generator's report of
+/// the end is late by its audio buffer), s.
+pub const SPEAKING_SLACK_S: f64 = 1.0;
+/// How long a sentence of unknown duration counts as spoken without its end being heard, s.
+pub const SPEAKING_MAX_S: f64 = 30.0;
 
 impl Dialog {
     pub fn new(cfg: DialogConfig) -> Result<Self, ConfigError> {
@@ -138,8 +148,30 @@ impl Dialog {
             state: State::Idle,
             misses: Vec::new(),
             speaking: false,
+            speaking_until_s: f64::NEG_INFINITY,
             quiet_since_s: f64::NEG_INFINITY,
         })
+    }
+
+    /// The robot started a sentence of `duration_s` seconds of audio (0: unknown) at `now_s`.
+    pub fn robot_started_speaking(&mut self, now_s: f64, duration_s: f64) {
+        let d = if duration_s.is_finite() && duration_s > 0.0 {
+            duration_s.min(SPEAKING_MAX_S) + SPEAKING_SLACK_S
+        } else {
+            SPEAKING_MAX_S
+        };
+        self.speaking = true;
+        self.speaking_until_s = now_s + d;
+    }
+
+    /// Whether the robot speaks at `now_s`: until it says it stopped, or its sentence's time is
+    /// up (then it is taken as stopped at that time).
+    fn speaking_at(&mut self, now_s: f64) -> bool {
+        if self.speaking && now_s > self.speaking_until_s {
+            let until = self.speaking_until_s;
+            self.robot_speaking(until, false);
+        }
+        self.speaking
     }
 
     /// The command awaiting a yes or no, if any.
@@ -152,6 +184,9 @@ impl Dialog {
 
     /// The robot started (`true`) or stopped speaking.
     pub fn robot_speaking(&mut self, now_s: f64, speaking: bool) {
+        if speaking && !self.speaking {
+            self.speaking_until_s = now_s + SPEAKING_MAX_S;
+        }
         if self.speaking && !speaking {
             self.quiet_since_s = now_s;
             // The person can only answer once the question is over.
@@ -217,7 +252,7 @@ impl Dialog {
     /// A recognized utterance at `now_s`.
     pub fn heard(&mut self, now_s: f64, h: Heard) -> Vec<Action> {
         let mut out = Vec::new();
-        if self.speaking || now_s - self.quiet_since_s < self.cfg.echo_guard_s {
+        if self.speaking_at(now_s) || now_s - self.quiet_since_s < self.cfg.echo_guard_s {
             out.push(Action::Ignored(IgnoreReason::RobotSpeaking));
             return out;
         }
@@ -262,6 +297,7 @@ impl Dialog {
     /// Time passes: a question past its deadline is dropped.
     pub fn tick(&mut self, now_s: f64) -> Vec<Action> {
         let mut out = Vec::new();
+        self.speaking_at(now_s);
         if let State::Confirming {
             pending,
             deadline_s,
@@ -459,5 +495,41 @@ mod tests {
         let c: DialogConfig = toml::from_str("high = 0.8\nlow = 0.2\n").unwrap();
         assert_eq!((c.high, c.low, c.answer_timeout_s), (0.8, 0.2, 8.0));
         assert!(toml::from_str::<DialogConfig>("hgh = 0.8").is_err());
+    }
+
+    #[test]
+    fn a_sentence_whose_end_is_never_heard_stops_counting_after_its_duration() {
+        // The speech generator died mid-sentence: no Finished ever comes. The dialog hears the
+        // person again once the sentence's audio would have ended (and the echo guard after).
+        let mut d = Dialog::new(DialogConfig::default()).unwrap();
+        d.robot_started_speaking(10.0, 1.6);
+        let touch = || Heard {
+            game: Game::Touch,
+            text: "touch the ball".into(),
+            confidence: 0.95,
+            command: Command::TouchBall,
+        };
+        assert_eq!(
+            d.heard(11.0, touch()),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        d.tick(12.7);
+        let out = d.heard(13.5, touch());
+        assert!(
+            out.iter()
+                .any(|a| matches!(a, Action::Publish(c) if c.command == Command::TouchBall)),
+            "{out:?}"
+        );
+        // A start with no duration counts for SPEAKING_MAX_S at most.
+        d.robot_started_speaking(20.0, 0.0);
+        assert_eq!(
+            d.heard(20.0 + SPEAKING_MAX_S - 1.0, touch()),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        let out = d.heard(20.0 + SPEAKING_MAX_S + 1.0, touch());
+        assert!(
+            out.iter().any(|a| matches!(a, Action::Publish(_))),
+            "{out:?}"
+        );
     }
 }

@@ -1,0 +1,95 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! A command heard while the Executive is away (restarting) is held, the person told "One moment,
+//! please.", and carried out as soon as the Executive reads `game/command` again; held too long,
+//! it is dropped and the person told so. On a real bus (a router on a free port), with the dialog
+//! running in-process.
+
+use dialogs::component::{HOLD_EXPIRED, HOLDING, Hold, run};
+use dialogs::machine::DialogConfig;
+use interfaces::msg::command::{Command, Game, GameCommand};
+use interfaces::msg::speech::{SayRequest, Utterance};
+use interfaces::{Bus, Shutdown, topics};
+use std::time::Duration;
+
+fn utterance(command: Command) -> Utterance {
+    Utterance {
+        game: Game::Touch,
+        text: command.phrase().to_string(),
+        confidence: 0.95,
+        command,
+        in_grammar: true,
+        ..Default::default()
+    }
+}
+
+async fn said(says: &interfaces::Subscriber<SayRequest>, text: &str) {
+    tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            if says.recv().await.unwrap().text == text {
+                return;
+            }
+        }
+    })
+    .await
+    .unwrap_or_else(|_| panic!("the robot did not say {text:?} within 10 s"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() {
+    let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
+        .await
+        .unwrap();
+    let args = interfaces::ConnectArgs::to_router(
+        &endpoint,
+        &format!("dialogs-hold-{}", std::process::id()),
+    );
+    let dialog_bus = Bus::open(&args, "dialogs").await.unwrap();
+    let person = Bus::open(&args, "person").await.unwrap();
+    let says = person.subscriber(&topics::SPEECH_SAY).await.unwrap();
+    let heard = person.publisher(&topics::SPEECH_UTTERANCE).await.unwrap();
+    let hold = Hold {
+        readers: vec!["executive".into()],
+        max: Duration::from_secs(3),
+    };
+    let (stop, shutdown): (_, Shutdown) = Shutdown::new();
+    let dialog = tokio::spawn(run(dialog_bus, DialogConfig::default(), hold, shutdown));
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
+    // No Executive: "touch the ball" is held, and the person hears "One moment, please."
+    heard
+        .publish(&mut utterance(Command::TouchBall))
+        .await
+        .unwrap();
+    said(&says, HOLDING).await;
+
+    // The Executive comes back: the held command reaches it.
+    let executive = Bus::open(&args, "executive").await.unwrap();
+    let commands = executive.subscriber(&topics::GAME_COMMAND).await.unwrap();
+    let got: GameCommand = tokio::time::timeout(Duration::from_secs(10), commands.recv())
+        .await
+        .expect("the held command within 10 s of the Executive's return")
+        .unwrap();
+    assert_eq!(got.command, Command::TouchBall);
+
+    // While it reads, commands go straight through, and nothing is said about holding.
+    heard.publish(&mut utterance(Command::Quit)).await.unwrap();
+    let got = tokio::time::timeout(Duration::from_secs(10), commands.recv())
+        .await
+        .expect("a command within 10 s")
+        .unwrap();
+    assert_eq!(got.command, Command::Quit);
+
+    // Away again for longer than the hold: the command is dropped, the person told so.
+    drop(commands);
+    drop(executive);
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    heard
+        .publish(&mut utterance(Command::ScanBall))
+        .await
+        .unwrap();
+    said(&says, HOLDING).await;
+    said(&says, HOLD_EXPIRED).await;
+
+    stop.send(true).unwrap();
+    dialog.await.unwrap().unwrap();
+}
