@@ -121,39 +121,6 @@ pub fn parse(ns: &str, key: &str) -> Option<Token> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn keys_parse_back() {
-        let k = publisher_key("n1", "ball_tracker", "robocog.BallPosition", "vision/ball");
-        assert_eq!(
-            parse("n1", &k),
-            Some(Token::Publisher {
-                component: "ball_tracker".into(),
-                type_name: "robocog.BallPosition".into(),
-                topic: "vision/ball".into()
-            })
-        );
-        let k = component_key("n1", "dr", "host-a", 42, 1700);
-        assert_eq!(
-            parse("n1", &k),
-            Some(Token::Component {
-                name: "dr".into(),
-                host: "host-a".into(),
-                pid: 42,
-                since_ms: 1700
-            })
-        );
-        let k = service_key("n1", "dr", "robocog.A", "robocog.B", "dr/transform");
-        assert!(matches!(parse("n1", &k), Some(Token::Service { .. })));
-        assert_eq!(parse("n2", &k), None, "another namespace is not ours");
-        assert_eq!(parse("n1", "robocog/n1/_live/c/x"), None);
-        assert_eq!(parse("n1", "robocog/n1/_live/z/a/b/c"), None);
-    }
-}
-
 /// The components subscribed to one topic, kept current from their liveliness tokens (see
 /// [`Readers::watch`]). Tools (`robocog record`, `topic echo`, the viewer) subscribe without a
 /// token and never count.
@@ -234,5 +201,38 @@ impl Readers {
         if self.rx.changed().await.is_err() {
             std::future::pending::<()>().await;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_parse_back() {
+        let k = publisher_key("n1", "ball_tracker", "robocog.BallPosition", "vision/ball");
+        assert_eq!(
+            parse("n1", &k),
+            Some(Token::Publisher {
+                component: "ball_tracker".into(),
+                type_name: "robocog.BallPosition".into(),
+                topic: "vision/ball".into()
+            })
+        );
+        let k = component_key("n1", "dr", "host-a", 42, 1700);
+        assert_eq!(
+            parse("n1", &k),
+            Some(Token::Component {
+                name: "dr".into(),
+                host: "host-a".into(),
+                pid: 42,
+                since_ms: 1700
+            })
+        );
+        let k = service_key("n1", "dr", "robocog.A", "robocog.B", "dr/transform");
+        assert!(matches!(parse("n1", &k), Some(Token::Service { .. })));
+        assert_eq!(parse("n2", &k), None, "another namespace is not ours");
+        assert_eq!(parse("n1", "robocog/n1/_live/c/x"), None);
+        assert_eq!(parse("n1", "robocog/n1/_live/z/a/b/c"), None);
     }
 }
