@@ -281,6 +281,78 @@ ready_timeout_s = 1.5
 }
 
 #[test]
+fn the_state_folder_outlives_a_failed_launch_is_moved_aside_or_resumed_and_goes_with_a_clean_one() {
+    let ns = unique_namespace("statefolder");
+    let dir = scratch(&ns);
+    let graph = |exit_code: u8, completes: bool| {
+        format!(
+            r#"
+[graph]
+name = "statefolders"
+
+[[component]]
+name = "worker"
+binary = "@FIXTURE@"
+args = ["--role", "idle", "--exit-after", "0.5", "--exit-code", "{exit_code}"]
+restart = "never"
+completes_graph = {completes}
+"#
+        )
+    };
+    let failing = write_manifest(&dir, "failing.toml", &graph(3, false));
+    let clean = write_manifest(&dir, "clean.toml", &graph(0, true));
+    let run = |m: &std::path::Path, extra: &[&str]| {
+        let mut launch = Launch::start(m, &ns, extra);
+        let status = launch.wait_exit(Duration::from_secs(30));
+        (status, launch.lines.all().join("\n"))
+    };
+    let folder = |out: &str| -> std::path::PathBuf {
+        let line = out
+            .lines()
+            .find(|l| l.contains("component state in "))
+            .unwrap_or_else(|| panic!("no state folder line:\n{out}"));
+        let p = line.split("component state in ").nth(1).unwrap();
+        std::path::PathBuf::from(p.trim_end_matches(" (resumed)"))
+    };
+
+    // A failed launch keeps its folder, and says where.
+    let (status, out) = run(&failing, &[]);
+    assert_eq!(status.code(), Some(1), "{out}");
+    let state = folder(&out);
+    assert!(
+        state.ends_with(format!("statefolders/{ns}")),
+        "{}",
+        state.display()
+    );
+    assert!(state.is_dir(), "{out}");
+    assert!(out.contains("the components' state stays in"), "{out}");
+    std::fs::write(state.join("marker"), "kept").unwrap();
+
+    // The next launch starts afresh: the earlier state moved aside, not lost.
+    let (_, out) = run(&failing, &[]);
+    let mut aside = state.as_os_str().to_owned();
+    aside.push(".previous");
+    let aside = std::path::PathBuf::from(aside);
+    assert!(out.contains("moved aside to"), "{out}");
+    assert!(aside.join("marker").is_file(), "{out}");
+    assert!(!state.join("marker").exists(), "{out}");
+
+    // --resume takes up what the last launch left.
+    std::fs::write(state.join("marker"), "kept").unwrap();
+    let (_, out) = run(&failing, &["--resume"]);
+    assert!(
+        out.contains("(resumed)") && !out.contains("moved aside"),
+        "{out}"
+    );
+    assert!(state.join("marker").is_file(), "{out}");
+
+    // A clean end removes it.
+    let (status, out) = run(&clean, &["--resume"]);
+    assert!(status.success(), "{out}");
+    assert!(!state.exists(), "{out}");
+}
+
+#[test]
 fn a_completing_component_ends_the_graph_with_success() {
     let ns = unique_namespace("complete");
     let m = write_manifest(

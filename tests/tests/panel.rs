@@ -424,7 +424,8 @@ fn the_panel_refuses_a_non_loopback_address_without_the_flag_and_a_token() {
         let args: Vec<String> = args.iter().map(|s| s.to_string()).collect();
         let out = run(&bin("command_generator"), &args, Duration::from_secs(10));
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        // A configuration error (EX_CONFIG): the launcher would not restart it.
+        assert_eq!(out.status.code(), Some(78), "{args:?}: {err}");
         assert!(err.contains(why), "{args:?}: {err}");
     }
 }

@@ -353,22 +353,8 @@ async fn a_killed_world_model_comes_back_with_the_ball_and_the_command_is_carrie
     // The DR is killed while the robot looks at the ball; the launcher restarts it, and it
     // recovers its world from its state folder (the launcher's, per component): the ball where
     // it was. The person says "touch the ball" once, and the robot touches it.
-    let game = play_with(
-        "restart_mid_game",
-        &[],
-        Duration::from_secs(200),
-        Some(("person: sees gaze within", "deep_representation")),
-    )
-    .await;
-    check_ok(&game);
-    assert!(game.killed.is_some());
+    let game = killed_at("person: sees gaze within", "deep_representation").await;
     let out = game.output.join("\n");
-    assert!(
-        game.output
-            .iter()
-            .any(|l| l.contains("deep_representation stopped") && l.contains("restart 1/")),
-        "no restart of the DR in the output:\n{out}"
-    );
     assert!(
         game.output.iter().any(|l| l.contains("deep_representation")
             && (l.contains("recovered the state from")
@@ -380,38 +366,15 @@ async fn a_killed_world_model_comes_back_with_the_ball_and_the_command_is_carrie
         "{:?}",
         game.said
     );
-    assert_eq!(
-        game.output
-            .iter()
-            .filter(|l| l.contains("says it again"))
-            .count(),
-        0,
-        "the person had to repeat herself:\n{out}"
-    );
     game.entered_in_order(&["tracking", "reaching", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
 }
 
-/// The Executive killed at `trigger` (an output line) during the `restart_mid_game` scenario: the
-/// launcher restarts it, it takes the game up from its state folder, says so in one line, and
-/// the person never repeats a command.
+/// The Executive killed at `trigger` (an output line) during the `restart_mid_game` scenario: it
+/// takes the game up from its state folder and says so in one line.
 async fn the_executive_killed_at(trigger: &str) -> Game {
-    let game = play_with(
-        "restart_mid_game",
-        &[],
-        Duration::from_secs(200),
-        Some((trigger, "executive")),
-    )
-    .await;
-    check_ok(&game);
-    assert!(game.killed.is_some());
+    let game = killed_at(trigger, "executive").await;
     let out = game.output.join("\n");
-    assert!(
-        game.output
-            .iter()
-            .any(|l| l.contains("executive stopped") && l.contains("restart 1/")),
-        "no restart of the Executive in the output:\n{out}"
-    );
     assert!(
         game.output
             .iter()
@@ -425,26 +388,18 @@ async fn the_executive_killed_at(trigger: &str) -> Game {
         "{:?}",
         game.said
     );
-    assert_eq!(
-        game.output
-            .iter()
-            .filter(|l| l.contains("says it again"))
-            .count(),
-        0,
-        "the person had to repeat herself:\n{out}"
-    );
     game
 }
 
-/// `component` killed while the robot looks at the ball, during the `restart_mid_game`
-/// scenario's pause: the launcher restarts it, the person says "touch the ball" once, and the
-/// game goes on to its end without a repeated command.
-async fn killed_while_tracking(component: &str) -> Game {
+/// `component` killed (SIGKILL) at `trigger` (an output line) during the `restart_mid_game`
+/// scenario: the launcher restarts it, the person says "touch the ball" once, and the game goes
+/// on to its end without a repeated command.
+async fn killed_at(trigger: &str, component: &str) -> Game {
     let game = play_with(
         "restart_mid_game",
         &[],
         Duration::from_secs(200),
-        Some(("person: sees gaze within", component)),
+        Some((trigger, component)),
     )
     .await;
     check_ok(&game);
@@ -465,6 +420,11 @@ async fn killed_while_tracking(component: &str) -> Game {
         "the person had to repeat herself after {component} was killed:\n{out}"
     );
     game
+}
+
+/// `component` killed while the robot looks at the ball (the scenario's pause).
+async fn killed_while_tracking(component: &str) -> Game {
+    killed_at("person: sees gaze within", component).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -102,14 +102,6 @@ impl TouchGame {
         if !record.playing {
             return out;
         }
-        let quiet = |o: Outcome| Outcome {
-            steps: o.steps,
-            outputs: o
-                .outputs
-                .into_iter()
-                .filter(|x| !matches!(x, Output::Say { .. }))
-                .collect(),
-        };
         out.outputs.push(Output::Log(LogLine {
             kind: "anomaly",
             text: format!(
@@ -139,14 +131,19 @@ impl TouchGame {
         if !self.machine.is_active(state::PLAYING) {
             return Outcome::default();
         }
-        let o = self.send("command:touch_ball", Input::None, now);
-        Outcome {
-            steps: o.steps,
-            outputs: o
-                .outputs
-                .into_iter()
-                .filter(|x| !matches!(x, Output::Say { .. }))
-                .collect(),
-        }
+        quiet(self.send("command:touch_ball", Input::None, now))
+    }
+}
+
+/// An outcome without what the robot would have said: the steps a resumed game retakes are not
+/// announced again.
+fn quiet(o: Outcome) -> Outcome {
+    Outcome {
+        steps: o.steps,
+        outputs: o
+            .outputs
+            .into_iter()
+            .filter(|x| !matches!(x, Output::Say { .. }))
+            .collect(),
     }
 }
