@@ -69,6 +69,22 @@ pub fn preflight() -> bool {
     PREFLIGHT.load(std::sync::atomic::Ordering::Relaxed)
 }
 
+/// The error of binding `what` to `addr`: a [`ConfigError`] when no restart can fix it (the
+/// address is not one of this machine's, or the port is privileged), a plain error when one may
+/// (the port is still held by the previous instance, or by another program for now).
+pub fn bind_error(what: &str, addr: impl std::fmt::Display, e: std::io::Error) -> anyhow::Error {
+    use std::io::ErrorKind;
+    match e.kind() {
+        ErrorKind::AddrNotAvailable => config_error(format!(
+            "cannot {what} on {addr}: it is not an address of this machine ({e})"
+        )),
+        ErrorKind::PermissionDenied => config_error(format!(
+            "cannot {what} on {addr}: permission denied (a port below 1024 needs privileges) ({e})"
+        )),
+        _ => anyhow::anyhow!("cannot {what} on {addr}: {e}"),
+    }
+}
+
 /// Whether `e`'s chain holds a [`ConfigError`].
 pub fn is_config_error(e: &anyhow::Error) -> bool {
     e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some())

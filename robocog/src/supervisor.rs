@@ -405,6 +405,10 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                 opts.state_dir.display()
             ));
         }
+        // The graph's folder too, when no other namespace has state in it.
+        if let Some(graph) = opts.state_dir.parent() {
+            let _ = std::fs::remove_dir(graph);
+        }
     } else {
         say(format!(
             "the components' state stays in {} (robocog launch --resume takes it up)",

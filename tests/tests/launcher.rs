@@ -222,6 +222,35 @@ depends_on = ["bystander"]
 }
 
 #[test]
+fn a_panel_on_an_address_this_machine_does_not_have_is_a_configuration_error() {
+    // Found only once it binds (after joining the bus): still no restart, the graph stops.
+    let ns = unique_namespace("noaddr");
+    let dir = scratch(&ns);
+    let m = write_manifest(
+        &dir,
+        "graph.toml",
+        &format!(
+            r#"
+[[component]]
+name = "panel"
+binary = "{}"
+args = ["--http", "192.0.2.1:8642", "--allow-remote", "--token", "a-long-enough-token"]
+external_inputs = ["nao/world_model", "nao/game_state", "nao/link", "nao/local_model",
+    "coach/status", "vision/rgbd", "vision/ball", "vision/ball_events", "speech/speaking",
+    "speech/utterance", "speech/say", "executive/transitions", "executive/log", "game/command"]
+"#,
+            bin("command_generator").display()
+        ),
+    );
+    let mut launch = Launch::start(&m, &ns, &[]);
+    let status = launch.wait_exit(Duration::from_secs(40));
+    let all = launch.lines.all().join("\n");
+    assert_eq!(status.code(), Some(78), "{all}");
+    assert!(all.contains("not an address of this machine"), "{all}");
+    assert!(!all.contains("restart 1/"), "{all}");
+}
+
+#[test]
 fn the_real_profile_without_its_servo_map_stops_at_once() {
     // No servo map, no servos: joint_motor cannot start, says why, and the launcher stops the
     // graph at once instead of restarting it five times.
@@ -350,6 +379,8 @@ completes_graph = {completes}
     let (status, out) = run(&clean, &["--resume"]);
     assert!(status.success(), "{out}");
     assert!(!state.exists(), "{out}");
+    // The graph's folder keeps only what other launches left (here the moved-aside one).
+    assert!(aside.is_dir(), "{out}");
 }
 
 #[test]

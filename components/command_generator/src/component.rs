@@ -60,7 +60,7 @@ pub fn envelope<T: Serialize>(kind: &str, topic: &str, data: &T) -> String {
 pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
     let listener = tokio::net::TcpListener::bind(config.listen)
         .await
-        .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", config.listen))?;
+        .map_err(|e| interfaces::node::bind_error("listen", config.listen, e))?;
     let addr = listener.local_addr()?;
     let (hub, commands) = Hub::new(bus.counters().clone(), config.token.clone());
 

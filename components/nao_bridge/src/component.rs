@@ -181,24 +181,14 @@ async fn mirror_to_dr(
 
 /// Run the bridge until shutdown.
 pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Result<()> {
-    let debug_sock = UdpSocket::bind(SocketAddr::new(config.listen, config.debug_port))
+    let debug_addr = SocketAddr::new(config.listen, config.debug_port);
+    let debug_sock = UdpSocket::bind(debug_addr)
         .await
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "cannot listen for debug packets on {}:{}: {e}",
-                config.listen,
-                config.debug_port
-            )
-        })?;
-    let gc_sock = UdpSocket::bind(SocketAddr::new(config.listen, config.gamecontroller_port))
-        .await
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "cannot listen for GameController packets on {}:{}: {e}",
-                config.listen,
-                config.gamecontroller_port
-            )
-        })?;
+        .map_err(|e| interfaces::node::bind_error("listen for debug packets", debug_addr, e))?;
+    let gc_addr = SocketAddr::new(config.listen, config.gamecontroller_port);
+    let gc_sock = UdpSocket::bind(gc_addr).await.map_err(|e| {
+        interfaces::node::bind_error("listen for GameController packets", gc_addr, e)
+    })?;
     let unspecified: IpAddr = if config.controlled.is_ipv4() {
         [0, 0, 0, 0].into()
     } else {
