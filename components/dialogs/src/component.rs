@@ -203,7 +203,9 @@ pub async fn run(
                     hold.max.as_secs_f64()
                 );
                 bus.counters().incr("commands_dropped_no_reader");
-                lines.push(HOLD_EXPIRED);
+                if !lines.contains(&HOLD_EXPIRED) {
+                    lines.push(HOLD_EXPIRED);
+                }
             }
         }
         for a in actions {
