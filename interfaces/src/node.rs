@@ -308,6 +308,12 @@ pub fn main<C: Component>() -> ExitCode {
             eprintln!("{name}: cannot be checked before the graph runs: {e:#}");
             return ExitCode::from(EX_TEMPFAIL);
         }
+        // Under --preflight the reason alone, for `robocog check` to quote; at a start, what it
+        // means for the launcher too.
+        Err(e) if cli.node.preflight => {
+            eprintln!("{name}: cannot start: {e:#}");
+            return ExitCode::from(EX_CONFIG);
+        }
         Err(e) => {
             eprintln!(
                 "{name}: cannot start: {e:#} (a configuration error: exit {EX_CONFIG}, a restart would not fix it)"

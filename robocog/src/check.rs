@@ -104,10 +104,6 @@ pub fn describe(binary: &Path, args: &[String], timeout: Duration) -> Result<Int
     serde_json::from_str(&ran.stdout).map_err(|e| format!("`--describe` printed no interface: {e}"))
 }
 
-fn preflight_one(binary: &Path, args: &[String], env: &[(String, String)]) -> Preflight {
-    preflight(binary, args, env, PREFLIGHT_TIMEOUT)
-}
-
 /// How long one component may take to check its configuration (a speech model loads).
 const PREFLIGHT_TIMEOUT: Duration = Duration::from_secs(60);
 
@@ -134,7 +130,7 @@ pub fn preflight(
         Err(e) => return Preflight::Cannot(e),
     };
     // The component's own words: from its "cannot ..." line on (the error comes last), without
-    // the name it starts with and the launcher's advice about restarts.
+    // the name it starts with.
     let lines: Vec<&str> = ran
         .stderr
         .lines()
@@ -148,12 +144,8 @@ pub fn preflight(
     let said = said
         .split_once(": cannot start: ")
         .or_else(|| said.split_once(": cannot be checked before the graph runs: "))
-        .map_or(said.as_str(), |(_, rest)| rest);
-    let said = said
+        .map_or(said.as_str(), |(_, rest)| rest)
         .trim_end()
-        .trim_end_matches(')')
-        .rsplit_once(" (a configuration error")
-        .map_or(said.trim_end(), |(s, _)| s)
         .to_string();
     match ran.status.code() {
         Some(0) => Preflight::Ready,
@@ -215,7 +207,11 @@ pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
             let handles: Vec<_> = checks
                 .iter()
                 .zip(&env)
-                .map(|((c, binary), env)| scope.spawn(move || preflight_one(binary, &c.args, env)))
+                .map(|((c, binary), env)| {
+                    scope.spawn(move || {
+                        crate::check::preflight(binary, &c.args, env, PREFLIGHT_TIMEOUT)
+                    })
+                })
                 .collect();
             handles
                 .into_iter()

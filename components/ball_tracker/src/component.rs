@@ -697,6 +697,18 @@ mod tests {
         assert!(track.found && track.state == BallTrackState::Tracking);
     }
 
+    /// [`red_target`] as the Executive sends it (unstamped).
+    fn red_target_msg() -> BallTarget {
+        let t = red_target();
+        BallTarget {
+            active: true,
+            hue_deg: t.hue_deg,
+            saturation: t.saturation,
+            diameter_m: t.diameter_m,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn target_messages_set_and_clear_the_target() {
         let mut h = Handler::new(TrackerConfig::default(), None).unwrap();
@@ -704,14 +716,7 @@ mod tests {
         let (track, _) = h.process(&frames[0].0).unwrap();
         assert_eq!(track.state, BallTrackState::Waiting);
         assert!(!track.found);
-        let t = red_target();
-        let mut msg = BallTarget {
-            active: true,
-            hue_deg: t.hue_deg,
-            saturation: t.saturation,
-            diameter_m: t.diameter_m,
-            ..Default::default()
-        };
+        let mut msg = red_target_msg();
         h.set_target(&msg).unwrap();
         let (track, events) = h.process(&frames[1].0).unwrap();
         assert!(track.found);
@@ -734,14 +739,7 @@ mod tests {
         // still tracked without it, the second with it.
         let frames = sim_frames(Scenario::Still, 6);
         let stamp = |i: usize| frames[i].0.header.stamp_ns;
-        let t = red_target();
-        let mut target = BallTarget {
-            active: true,
-            hue_deg: t.hue_deg,
-            saturation: t.saturation,
-            diameter_m: t.diameter_m,
-            ..Default::default()
-        };
+        let mut target = red_target_msg();
         target.header.stamp_ns = stamp(0) + 1;
         let mut h = Handler::new(TrackerConfig::default(), None).unwrap();
         h.set_target(&target).unwrap();
