@@ -5,23 +5,25 @@
 //!
 //! | service (`interfaces::topics`) | does |
 //! |---|---|
-//! | `dr/get_node` | one node: type, parent, children, edge, pose, attributes, full spec as JSON |
+//! | `dr/get_node` | one node: type, parent, children, edge, pose, attributes, its full description |
 //! | `dr/transform` | `target_T_source`, latest or at a past time (interpolated from the edge histories) |
 //! | `dr/update` | attributes, free poses, joint values, straight in; the batch is checked first and applied whole or not at all |
 //! | `dr/propose` | a structural change; accepted or rejected with the integrity rule that refused it |
 //! | `dr/predicate` | whether a predicate holds, or every fact that holds |
 //! | `dr/fork` | virtual actions on a private copy; predicate changes, joints changed, items moved (the live graph untouched) |
 //! | `dr/pddl` | the state as a PDDL problem text |
-//! | `dr/snapshot`, `dr/restore` | the state as snapshot JSON; replace the state with one |
+//! | `dr/snapshot`, `dr/restore` | the state as a typed snapshot (every node's description, the body parts); replace the state with one |
 //!
 //! Every accepted change is published on `dr/changes` (in order, with a sequence number that
 //! continues across restarts) and, with a state folder, appended to its change log before the
-//! reply leaves (see [`crate::persist`]).
+//! reply leaves (see [`world_model::persist`]).
+//!
+//! Bus messages and library types meet in `world_model::bus` (conversions both ways).
 //!
 //! Errors: an unknown node, frame or joint is a `NotFound` [`ServiceError`]; a malformed request
-//! (bad JSON, a non-finite number, a wrong argument count, a negative stamp) is `BadRequest`; a
-//! rejected proposal is a normal reply. Time: the stamp of a change is the request's
-//! `header.stamp_ns`, or now on the bus clock when it is 0.
+//! (a non-finite number, an attribute given twice, a wrong argument count, a negative stamp) is
+//! `BadRequest`; a rejected proposal is a normal reply. Time: the stamp of a change is the
+//! request's `header.stamp_ns`, or now on the bus clock when it is 0.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -33,14 +35,15 @@ use interfaces::{Bus, ServiceError, Shutdown, topics};
 use tokio::sync::{RwLock, mpsc};
 
 use robot_model::RobotModel;
+use world_model::bus::{reason_code, transform_from_iso};
 use world_model::error::DrError;
 use world_model::field::FieldModel;
-use world_model::graph::{At, EdgeKind, RejectReason, SceneGraph};
+use world_model::graph::{At, EdgeKind, SceneGraph};
 use world_model::pddl::{Atom, export_problem};
 use world_model::persist::{LogLine, RecoveryReport, Store, StoreOptions};
 use world_model::predicates::{self, PredicateConfig, PredicateKind, fork_report};
-use world_model::types::{self, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Proposal, Stamp};
-use world_model::{scenes, types::Pose};
+use world_model::scenes;
+use world_model::types::{self, NodeType, Pose, Proposal, Stamp};
 
 /// The start scene used when the state folder holds no state (or there is none).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -151,28 +154,6 @@ fn internal(what: impl std::fmt::Display) -> ServiceError {
     ServiceError::new(interfaces::ErrorCode::Internal, what.to_string())
 }
 
-/// A bus attribute value as the library's.
-pub fn attr_from_msg(v: &m::AttrValue) -> types::AttrValue {
-    match v {
-        m::AttrValue::Bool(b) => types::AttrValue::Bool(*b),
-        m::AttrValue::Int(i) => types::AttrValue::Int(*i),
-        m::AttrValue::Float(f) => types::AttrValue::Float(*f),
-        m::AttrValue::Text(t) => types::AttrValue::Text(t.clone()),
-        m::AttrValue::Vec3(v) => types::AttrValue::Vec3(*v),
-    }
-}
-
-/// A library attribute value as the bus'.
-pub fn attr_to_msg(v: &types::AttrValue) -> m::AttrValue {
-    match v {
-        types::AttrValue::Bool(b) => m::AttrValue::Bool(*b),
-        types::AttrValue::Int(i) => m::AttrValue::Int(*i),
-        types::AttrValue::Float(f) => m::AttrValue::Float(*f),
-        types::AttrValue::Text(t) => m::AttrValue::Text(t.clone()),
-        types::AttrValue::Vec3(v) => m::AttrValue::Vec3(*v),
-    }
-}
-
 fn attr_checked(a: &m::Attribute) -> Result<types::AttrValue, ServiceError> {
     if a.key.is_empty() {
         return Err(ServiceError::bad_request(format!(
@@ -180,30 +161,17 @@ fn attr_checked(a: &m::Attribute) -> Result<types::AttrValue, ServiceError> {
             a.node
         )));
     }
-    let finite = match &a.value {
-        m::AttrValue::Float(f) => f.is_finite(),
-        m::AttrValue::Vec3(v) => v.iter().all(|x| x.is_finite()),
-        _ => true,
-    };
-    if !finite {
+    if !a.value.is_finite() {
         return Err(ServiceError::bad_request(format!(
             "attribute `{}.{}`: value is not finite",
             a.node, a.key
         )));
     }
-    Ok(attr_from_msg(&a.value))
-}
-
-/// A bus transform as the library's pose.
-pub fn pose_from_msg(t: &m::Transform) -> Pose {
-    Pose {
-        translation_m: t.translation_m,
-        rotation_xyzw: t.rotation_xyzw,
-    }
+    Ok((&a.value).into())
 }
 
 fn pose_checked(what: &str, t: &m::Transform) -> Result<Pose, ServiceError> {
-    let p = pose_from_msg(t);
+    let p = Pose::from(t);
     if p.is_valid() {
         Ok(p)
     } else {
@@ -213,90 +181,10 @@ fn pose_checked(what: &str, t: &m::Transform) -> Result<Pose, ServiceError> {
     }
 }
 
-/// A nalgebra isometry as a bus transform.
-pub fn transform_to_msg(iso: &nalgebra::Isometry3<f64>) -> m::Transform {
-    let p = Pose::from_iso(iso);
-    m::Transform {
-        translation_m: p.translation_m,
-        rotation_xyzw: p.rotation_xyzw,
-    }
-}
-
-/// The snake_case code of a rejection reason.
-pub fn reason_code(r: &RejectReason) -> &'static str {
-    match r {
-        RejectReason::DuplicateName(_) => "duplicate_name",
-        RejectReason::InvalidName(_) => "invalid_name",
-        RejectReason::UnknownParent(_) => "unknown_parent",
-        RejectReason::UnknownNode(_) => "unknown_node",
-        RejectReason::UnknownType(..) => "unknown_type",
-        RejectReason::Cycle { .. } => "cycle",
-        RejectReason::HasChildren(..) => "has_children",
-        RejectReason::Protected(..) => "protected",
-        RejectReason::InvalidGeometry(_) => "invalid_geometry",
-        RejectReason::DuplicateJoint(_) => "duplicate_joint",
-    }
-}
-
-/// A bus structural change as a library proposal (`BadRequest` for unreadable `spec_json`).
-pub fn proposal_from_msg(c: &m::StructuralChange) -> Result<Proposal, ServiceError> {
-    Ok(match c.kind {
-        m::ChangeKind::AddNode if !c.spec_json.is_empty() => {
-            let spec: NodeSpec = serde_json::from_str(&c.spec_json).map_err(|e| {
-                ServiceError::bad_request(format!("spec_json is not a node spec: {e}"))
-            })?;
-            Proposal::add(spec)
-        }
-        m::ChangeKind::AddNode => {
-            let pose = pose_from_msg(&c.pose);
-            let mut spec = NodeSpec {
-                name: c.name.clone(),
-                node_type: c.node_type.clone(),
-                parent: c.parent.clone(),
-                edge: if c.fixed {
-                    EdgeSpec::Fixed { origin: pose }
-                } else {
-                    EdgeSpec::Free { pose }
-                },
-                attrs: Default::default(),
-                camera: None,
-                collision: Vec::new(),
-            };
-            for a in &c.attributes {
-                spec.attrs.insert(a.key.clone(), attr_checked(a)?);
-            }
-            Proposal::add(spec)
-        }
-        m::ChangeKind::RemoveNode => Proposal::RemoveNode {
-            name: c.name.clone(),
-        },
-        m::ChangeKind::Reparent => Proposal::Reparent {
-            name: c.name.clone(),
-            new_parent: c.parent.clone(),
-            pose: pose_from_msg(&c.pose),
-        },
-    })
-}
-
-fn fact_to_msg(f: &predicates::Fact) -> m::Fact {
-    m::Fact {
-        predicate: f.kind.name().into(),
-        args: f.args.clone(),
-    }
-}
-
-fn event_summary(e: &ChangeEvent) -> (&'static str, String, Stamp) {
-    match e {
-        ChangeEvent::NodeAdded { stamp, spec } => ("node_added", spec.name.clone(), *stamp),
-        ChangeEvent::NodeRemoved { stamp, name } => ("node_removed", name.clone(), *stamp),
-        ChangeEvent::Reparented { stamp, name, .. } => ("reparented", name.clone(), *stamp),
-        ChangeEvent::JointSet { stamp, joint, .. } => ("joint_set", joint.clone(), *stamp),
-        ChangeEvent::PoseSet { stamp, node, .. } => ("pose_set", node.clone(), *stamp),
-        ChangeEvent::AttributeSet { stamp, node, .. } => ("attribute_set", node.clone(), *stamp),
-        ChangeEvent::BodyPartDeclared { stamp, part } => {
-            ("body_part_declared", part.name.clone(), *stamp)
-        }
-    }
+/// A bus structural change as a library proposal (`BadRequest` for what the library cannot
+/// hold: an attribute given twice, a number that is not finite).
+fn proposal_checked(c: &m::StructuralChange) -> Result<Proposal, ServiceError> {
+    Proposal::try_from(c).map_err(|e| ServiceError::bad_request(e.to_string()))
 }
 
 // ---------------------------------------------------------------- the live state
@@ -352,15 +240,12 @@ impl Dr {
         self.persist(live, &lines)?;
         for l in &lines {
             let Some(ev) = &l.event else { continue };
-            let (kind, node, stamp) = event_summary(ev);
             let mut msg = m::DrChange {
                 header: interfaces::Header::new("world"),
                 seq: l.seq,
-                kind: kind.into(),
-                node,
-                event_json: serde_json::to_string(ev).unwrap_or_default(),
+                event: ev.into(),
             };
-            msg.header.stamp_ns = stamp.0.min(i64::MAX as u64) as i64;
+            msg.header.stamp_ns = ev.stamp().0.min(i64::MAX as u64) as i64;
             if self.changes.send(msg).await.is_err() {
                 self.bus.counters().incr("dr/changes_not_published");
             }
@@ -410,10 +295,11 @@ impl Dr {
             (EdgeKind::Free, _) => ("free", String::new()),
             (EdgeKind::Joint { joint, .. }, _) => ("joint", joint.clone()),
         };
-        let spec_json = match g.node_spec(&req.name) {
-            Ok(spec) => serde_json::to_string(&spec).map_err(internal)?,
-            Err(_) => String::new(),
-        };
+        // `world` has no description (no parent): the default.
+        let spec = g
+            .node_spec(&req.name)
+            .map(|s| m::NodeSpec::from(&s))
+            .unwrap_or_default();
         Ok(m::NodeInfo {
             header: interfaces::Header::new(parent.clone()),
             name: n.name.clone(),
@@ -431,17 +317,17 @@ impl Dr {
                 n.edge.value()
             },
             joint,
-            pose: transform_to_msg(n.edge.current()),
+            pose: transform_from_iso(n.edge.current()),
             attributes: n
                 .attrs
                 .iter()
                 .map(|(k, v)| m::Attribute {
                     node: n.name.clone(),
                     key: k.clone(),
-                    value: attr_to_msg(v),
+                    value: v.into(),
                 })
                 .collect(),
-            spec_json,
+            spec,
         })
     }
 
@@ -468,7 +354,7 @@ impl Dr {
             target: req.target,
             source: req.source,
             stamp_ns,
-            transform: transform_to_msg(&iso),
+            transform: transform_from_iso(&iso),
         })
     }
 
@@ -515,10 +401,10 @@ impl Dr {
             g.set_joint(&j.joint, j.value, stamp)?;
         }
         for p in poses {
-            g.set_pose(&p.node, &pose_from_msg(&p.pose).to_iso(), stamp)?;
+            g.set_pose(&p.node, &Pose::from(&p.pose).to_iso(), stamp)?;
         }
         for a in attributes {
-            g.set_attr(&a.node, &a.key, attr_from_msg(&a.value), stamp)?;
+            g.set_attr(&a.node, &a.key, (&a.value).into(), stamp)?;
         }
         Ok(())
     }
@@ -548,7 +434,7 @@ impl Dr {
     /// `dr/propose`.
     pub async fn propose(&self, req: m::ProposeRequest) -> Result<m::ProposeReply, ServiceError> {
         let stamp = self.stamp(&req.header)?;
-        let proposal = proposal_from_msg(&req.change)?;
+        let proposal = proposal_checked(&req.change)?;
         let mut live = self.live.write().await;
         match live.graph.propose(proposal, stamp) {
             Ok(()) => {
@@ -587,7 +473,7 @@ impl Dr {
         if req.predicate.is_empty() {
             let facts = predicates::evaluate(g, cfg, at).map_err(dr_err)?;
             return Ok(m::PredicateReply {
-                facts: facts.iter().map(fact_to_msg).collect(),
+                facts: facts.iter().map(Into::into).collect(),
                 ..Default::default()
             });
         }
@@ -642,7 +528,7 @@ impl Dr {
         let proposals = req
             .changes
             .iter()
-            .map(proposal_from_msg)
+            .map(proposal_checked)
             .collect::<Result<Vec<_>, _>>()?;
         let mut f = g.fork();
         // After every kept sample, so the virtual actions become the fork's current state.
@@ -658,8 +544,8 @@ impl Dr {
         let report = fork_report(g, &f, &self.predicates).map_err(dr_err)?;
         Ok(m::ForkReply {
             header: Default::default(),
-            became_true: report.facts.became_true.iter().map(fact_to_msg).collect(),
-            became_false: report.facts.became_false.iter().map(fact_to_msg).collect(),
+            became_true: report.facts.became_true.iter().map(Into::into).collect(),
+            became_false: report.facts.became_false.iter().map(Into::into).collect(),
             joints_changed: report
                 .joints_changed
                 .into_iter()
@@ -706,8 +592,7 @@ impl Dr {
         let live = self.live.read().await;
         Ok(m::SnapshotData {
             header: Default::default(),
-            json: live.graph.snapshot_json(),
-            nodes: live.graph.len() as u32,
+            snapshot: (&live.graph.snapshot()).into(),
             last_seq: live.last_seq,
         })
     }
@@ -715,7 +600,7 @@ impl Dr {
     /// `dr/restore`: replace the live graph with a snapshot (`BadRequest` if it does not
     /// restore); persisted as a `restore` line, then compacted; published as `restored`.
     pub async fn restore(&self, req: m::SnapshotData) -> Result<m::SnapshotData, ServiceError> {
-        let snap: types::Snapshot = serde_json::from_str(&req.json)
+        let snap = types::Snapshot::try_from(&req.snapshot)
             .map_err(|e| ServiceError::bad_request(format!("not a valid snapshot: {e}")))?;
         let mut graph = SceneGraph::restore(&snap).map_err(dr_err)?;
         graph.set_history_len(self.history_len);
@@ -744,16 +629,14 @@ impl Dr {
         let msg = m::DrChange {
             header: interfaces::Header::new("world"),
             seq,
-            kind: "restored".into(),
-            ..Default::default()
+            event: m::ChangeEvent::Restored,
         };
         if self.changes.send(msg).await.is_err() {
             self.bus.counters().incr("dr/changes_not_published");
         }
         Ok(m::SnapshotData {
             header: Default::default(),
-            json: live.graph.snapshot_json(),
-            nodes: live.graph.len() as u32,
+            snapshot: (&live.graph.snapshot()).into(),
             last_seq: seq,
         })
     }

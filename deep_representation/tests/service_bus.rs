@@ -100,12 +100,18 @@ async fn nodes_transforms_and_updates_with_typed_errors() {
         ("ball", "world", "free")
     );
     assert_eq!(ball.pose.translation_m, [0.8, 0.2, 1.1]);
+    // The full description: the free edge at the same pose, the attributes.
+    assert_eq!(ball.spec.name, "ball");
+    assert_eq!(ball.spec.edge, Edge::Free { pose: ball.pose });
     assert!(
-        ball.spec_json.contains("\"radius_m\""),
-        "{}",
-        ball.spec_json
+        ball.spec
+            .attributes
+            .iter()
+            .any(|a| a.key == "radius_m" && matches!(a.value, AttrValue::Float(r) if r > 0.0)),
+        "{:?}",
+        ball.spec
     );
-    let elbow = c
+    let world = c
         .call(
             &topics::DR_GET_NODE,
             &GetNodeRequest {
@@ -116,7 +122,12 @@ async fn nodes_transforms_and_updates_with_typed_errors() {
         )
         .await
         .unwrap();
-    assert!(elbow.children.contains(&"loki".to_string()));
+    assert!(world.children.contains(&"loki".to_string()));
+    assert_eq!(
+        world.spec,
+        NodeSpec::default(),
+        "the root has no description"
+    );
 
     // world_T_ball is the ball's position; ball_T_world its inverse.
     let r = c
@@ -300,39 +311,32 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
         header: Header::default(),
         change,
     };
+    let node = |name: &str, node_type: &str, parent: &str| NodeSpec {
+        name: name.into(),
+        node_type: node_type.into(),
+        parent: parent.into(),
+        ..Default::default()
+    };
     for (change, code) in [
         (
-            StructuralChange {
-                name: "cup".into(),
-                node_type: "object".into(),
-                parent: "table".into(),
-                ..Default::default()
-            },
+            StructuralChange::AddNode(Box::new(node("cup", "object", "table"))),
             "unknown_parent",
         ),
         (
-            StructuralChange {
-                name: "cup".into(),
-                node_type: "teacup".into(),
-                parent: "world".into(),
-                ..Default::default()
-            },
+            StructuralChange::AddNode(Box::new(node("cup", "teacup", "world"))),
             "unknown_type",
         ),
         (
-            StructuralChange {
-                kind: ChangeKind::RemoveNode,
+            StructuralChange::RemoveNode {
                 name: "left_hand_center".into(),
-                ..Default::default()
             },
             "protected",
         ),
         (
-            StructuralChange {
-                kind: ChangeKind::Reparent,
+            StructuralChange::Reparent {
                 name: "loki".into(),
-                parent: "left_hand_center".into(),
-                ..Default::default()
+                new_parent: "left_hand_center".into(),
+                pose: Transform::default(),
             },
             "cycle",
         ),
@@ -345,28 +349,42 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
         assert_eq!(r.reason_code, code, "{r:?}");
         assert!(!r.reason.is_empty());
     }
-    // Malformed spec JSON is a BadRequest, not a rejection.
-    let err = remote(
-        c.call(
-            &topics::DR_PROPOSE,
-            &propose(StructuralChange {
-                spec_json: "{\"name\": 3}".into(),
-                ..Default::default()
-            }),
-            T,
-        )
-        .await,
-    );
-    assert_eq!(err.code, ErrorCode::BadRequest);
+    // A description the graph cannot hold (a NaN attribute, an attribute given twice) is a
+    // BadRequest, not a rejection.
+    let with_attrs = |attributes: Vec<KeyValue>| NodeSpec {
+        attributes,
+        ..node("cup", "object", "world")
+    };
+    let radius = |r: f64| KeyValue {
+        key: "radius_m".into(),
+        value: AttrValue::Float(r),
+    };
+    for (spec, says) in [
+        (with_attrs(vec![radius(f64::NAN)]), "not finite"),
+        (with_attrs(vec![radius(0.1), radius(0.2)]), "given twice"),
+    ] {
+        let err = remote(
+            c.call(
+                &topics::DR_PROPOSE,
+                &propose(StructuralChange::AddNode(Box::new(spec))),
+                T,
+            )
+            .await,
+        );
+        assert_eq!(err.code, ErrorCode::BadRequest);
+        assert!(err.message.contains(says), "{}", err.message);
+    }
     // Accepted: a marker fixed to the table, via a full spec.
-    let spec = r#"{"name":"marker","node_type":"landmark","parent":"world","edge":{"edge":"fixed","origin":{"translation_m":[2.0,0.0,0.0],"rotation_xyzw":[0.0,0.0,0.0,1.0]}}}"#;
+    let marker = NodeSpec {
+        edge: Edge::Fixed {
+            origin: Transform::from_translation(2.0, 0.0, 0.0),
+        },
+        ..node("marker", "landmark", "world")
+    };
     let r = c
         .call(
             &topics::DR_PROPOSE,
-            &propose(StructuralChange {
-                spec_json: spec.into(),
-                ..Default::default()
-            }),
+            &propose(StructuralChange::AddNode(Box::new(marker.clone()))),
             T,
         )
         .await
@@ -375,13 +393,16 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
     let published = changes.recv_timeout(T).await.unwrap().expect("a change");
     assert_eq!(
         (
-            published.kind.as_str(),
-            published.node.as_str(),
+            published.event.kind(),
+            published.event.node(),
             published.seq
         ),
         ("node_added", "marker", r.seq)
     );
-    assert!(published.event_json.contains("\"node_added\""));
+    match &published.event {
+        ChangeEvent::NodeAdded { spec, .. } => assert_eq!(**spec, marker),
+        other => panic!("expected the added node, got {other:?}"),
+    }
 
     // Predicates: one fact, all facts, bad arity, unknown predicate, unknown body part.
     let pred = |p: &str, args: &[&str]| PredicateRequest {
@@ -460,12 +481,9 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
             node: "ball".into(),
             pose: Transform::from_translation(0.42, 0.2, 1.0),
         }],
-        changes: vec![StructuralChange {
-            name: "marker".into(),
-            node_type: "landmark".into(),
-            parent: "world".into(),
-            ..Default::default()
-        }],
+        changes: vec![StructuralChange::AddNode(Box::new(node(
+            "marker", "landmark", "world",
+        )))],
         ..Default::default()
     };
     let r = c.call(&topics::DR_FORK, &fork, T).await.unwrap();
@@ -490,7 +508,7 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
         .await
         .unwrap();
     assert_eq!(
-        snap_after.json, snap_before.json,
+        snap_after.snapshot, snap_before.snapshot,
         "the fork left the live graph alone"
     );
     assert_eq!(snap_after.last_seq, snap_before.last_seq);
@@ -545,39 +563,56 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
     );
 
     // Restore: replace the state with the empty world, then with the saved one.
-    let empty = world_model::SceneGraph::new().snapshot_json();
+    let empty = world_model::SceneGraph::new().snapshot();
     let r = c
         .call(
             &topics::DR_RESTORE,
             &SnapshotData {
-                json: empty,
+                snapshot: (&empty).into(),
                 ..Default::default()
             },
             T,
         )
         .await
         .unwrap();
-    assert_eq!(r.nodes, 1);
+    assert!(r.snapshot.nodes.is_empty(), "only world: {r:?}");
     let err = remote(
         c.call(&topics::DR_TRANSFORM, &tf("world", "ball", 0), T)
             .await,
     );
     assert_eq!(err.code, ErrorCode::NotFound);
     let r = c.call(&topics::DR_RESTORE, &snap_before, T).await.unwrap();
-    assert_eq!(r.nodes, snap_before.nodes);
-    assert_eq!(r.json, snap_before.json);
-    let err = remote(
-        c.call(
-            &topics::DR_RESTORE,
-            &SnapshotData {
-                json: "{\"format\": \"nope\"".into(),
-                ..Default::default()
-            },
-            T,
-        )
-        .await,
-    );
-    assert_eq!(err.code, ErrorCode::BadRequest);
+    assert_eq!(r.snapshot, snap_before.snapshot, "nothing lost on the way");
+    let nodes = &r.snapshot.nodes;
+    assert!(nodes.iter().any(|n| matches!(n.camera, Camera::Pinhole(_))));
+    assert!(nodes.iter().any(|n| matches!(n.edge, Edge::Joint { .. })));
+    assert!(nodes.iter().any(|n| !n.collision.is_empty()));
+    assert!(!r.snapshot.body_parts.is_empty());
+    // A snapshot that is no graph (a node under a parent that is not there), or that holds what
+    // a graph cannot (a NaN attribute), is a BadRequest and changes nothing.
+    let orphan = Snapshot {
+        nodes: vec![node("cup", "object", "table")],
+        ..Default::default()
+    };
+    let nan = Snapshot {
+        nodes: vec![with_attrs(vec![radius(f64::NAN)])],
+        ..Default::default()
+    };
+    for (snapshot, says) in [(orphan, "table"), (nan, "not finite")] {
+        let err = remote(
+            c.call(
+                &topics::DR_RESTORE,
+                &SnapshotData {
+                    snapshot,
+                    ..Default::default()
+                },
+                T,
+            )
+            .await,
+        );
+        assert_eq!(err.code, ErrorCode::BadRequest);
+        assert!(err.message.contains(says), "{}", err.message);
+    }
     // Changes leave after the reply: wait for both, then make sure nothing else came.
     let mut kinds = Vec::new();
     for _ in 0..2 {
@@ -586,7 +621,7 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
             .await
             .unwrap()
             .expect("a published restore");
-        kinds.push(c.kind);
+        kinds.push(c.event.kind());
     }
     assert_eq!(kinds, ["restored", "restored"]);
     assert!(

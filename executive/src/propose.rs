@@ -14,7 +14,7 @@
 //! Everything else goes on to `dr/propose`, whose own integrity rules (links protected, parents
 //! known, no cycles) still apply.
 
-use interfaces::msg::dr::{ChangeKind, StructuralChange};
+use interfaces::msg::dr::StructuralChange;
 
 use crate::settings::ProposeSettings;
 
@@ -49,40 +49,44 @@ pub fn check(
     settings: &ProposeSettings,
     facts: &Facts,
 ) -> Result<(), Refusal> {
-    let name = change.name.trim();
+    let name = change.name().trim();
     if name.is_empty() {
         return refuse("invalid", "the change names no node".into());
     }
     let protected = settings.protected.iter().any(|p| p == name);
-    match change.kind {
-        ChangeKind::RemoveNode | ChangeKind::Reparent if facts.game_on && protected => refuse(
-            "game_protected",
-            format!(
-                "`{name}` cannot be {} while a game is running",
-                if change.kind == ChangeKind::RemoveNode {
-                    "removed"
-                } else {
-                    "moved"
-                }
-            ),
-        ),
-        ChangeKind::AddNode if facts.name_exists => refuse(
+    match change {
+        StructuralChange::RemoveNode { .. } | StructuralChange::Reparent { .. }
+            if facts.game_on && protected =>
+        {
+            refuse(
+                "game_protected",
+                format!(
+                    "`{name}` cannot be {} while a game is running",
+                    if matches!(change, StructuralChange::RemoveNode { .. }) {
+                        "removed"
+                    } else {
+                        "moved"
+                    }
+                ),
+            )
+        }
+        StructuralChange::AddNode(_) if facts.name_exists => refuse(
             "duplicate_name",
             format!("a node called `{name}` already exists"),
         ),
-        ChangeKind::AddNode
+        StructuralChange::AddNode(spec)
             if facts.game_on
                 && facts.type_present
                 && settings
                     .unique_types
                     .iter()
-                    .any(|t| t.eq_ignore_ascii_case(&change.node_type)) =>
+                    .any(|t| t.eq_ignore_ascii_case(&spec.node_type)) =>
         {
             refuse(
                 "duplicate_object",
                 format!(
                     "there is already a {} in the game; `{name}` would be a second one",
-                    change.node_type.to_lowercase()
+                    spec.node_type.to_lowercase()
                 ),
             )
         }
@@ -94,13 +98,26 @@ pub fn check(
 mod tests {
     use super::*;
 
-    fn change(kind: ChangeKind, name: &str, node_type: &str) -> StructuralChange {
-        StructuralChange {
-            kind,
+    use interfaces::msg::dr::{NodeSpec, Transform};
+
+    fn add(name: &str, node_type: &str) -> StructuralChange {
+        StructuralChange::AddNode(Box::new(NodeSpec {
             name: name.into(),
             node_type: node_type.into(),
             parent: "world".into(),
             ..Default::default()
+        }))
+    }
+
+    fn remove(name: &str) -> StructuralChange {
+        StructuralChange::RemoveNode { name: name.into() }
+    }
+
+    fn reparent(name: &str) -> StructuralChange {
+        StructuralChange::Reparent {
+            name: name.into(),
+            new_parent: "world".into(),
+            pose: Transform::default(),
         }
     }
 
@@ -114,8 +131,8 @@ mod tests {
     fn the_ball_and_the_robot_stay_during_a_game_and_not_after() {
         let s = ProposeSettings::default();
         for name in ["ball", "base_footprint", "world"] {
-            for kind in [ChangeKind::RemoveNode, ChangeKind::Reparent] {
-                let e = check(&change(kind, name, ""), &s, &ON).unwrap_err();
+            for change in [remove(name), reparent(name)] {
+                let e = check(&change, &s, &ON).unwrap_err();
                 assert_eq!(e.code, "game_protected");
                 assert!(e.reason.contains(name));
             }
@@ -124,8 +141,8 @@ mod tests {
             game_on: false,
             ..ON
         };
-        assert!(check(&change(ChangeKind::RemoveNode, "ball", ""), &s, &off).is_ok());
-        assert!(check(&change(ChangeKind::RemoveNode, "cup", ""), &s, &ON).is_ok());
+        assert!(check(&remove("ball"), &s, &off).is_ok());
+        assert!(check(&remove("cup"), &s, &ON).is_ok());
     }
 
     #[test]
@@ -135,29 +152,17 @@ mod tests {
             name_exists: true,
             ..ON
         };
-        let e = check(&change(ChangeKind::AddNode, "cup", "object"), &s, &exists).unwrap_err();
+        let e = check(&add("cup", "object"), &s, &exists).unwrap_err();
         assert_eq!(e.code, "duplicate_name");
         let ball_there = Facts {
             type_present: true,
             ..ON
         };
-        let e = check(
-            &change(ChangeKind::AddNode, "ball2", "Ball"),
-            &s,
-            &ball_there,
-        )
-        .unwrap_err();
+        let e = check(&add("ball2", "Ball"), &s, &ball_there).unwrap_err();
         assert_eq!(e.code, "duplicate_object");
-        assert!(
-            check(
-                &change(ChangeKind::AddNode, "cup", "object"),
-                &s,
-                &ball_there
-            )
-            .is_ok()
-        );
-        assert!(check(&change(ChangeKind::AddNode, "ball", "ball"), &s, &ON).is_ok());
-        let e = check(&change(ChangeKind::AddNode, " ", "ball"), &s, &ON).unwrap_err();
+        assert!(check(&add("cup", "object"), &s, &ball_there).is_ok());
+        assert!(check(&add("ball", "ball"), &s, &ON).is_ok());
+        let e = check(&add(" ", "ball"), &s, &ON).unwrap_err();
         assert_eq!(e.code, "invalid");
     }
 }

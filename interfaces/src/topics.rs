@@ -45,7 +45,7 @@ pub const DR_FORK: Service<crate::msg::dr::ForkRequest, crate::msg::dr::ForkRepl
 /// The state as a PDDL problem.
 pub const DR_PDDL: Service<crate::msg::dr::PddlRequest, crate::msg::dr::PddlReply> =
     Service::new("dr/pddl");
-/// The state as snapshot JSON.
+/// The current state as a snapshot (every node's description, the body parts; no history).
 pub const DR_SNAPSHOT: Service<crate::msg::dr::SnapshotRequest, crate::msg::dr::SnapshotData> =
     Service::new("dr/snapshot");
 /// Replace the state with a snapshot (replies with the new state's snapshot).

@@ -364,6 +364,14 @@ pub fn run_in(dir: Option<&Path>, program: &Path, args: &[String], timeout: Dura
     }
 }
 
+/// A UDP port free on loopback now (for a simulated field's or a bridge's sockets).
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .map(|a| a.port())
+        .expect("a free UDP port on loopback")
+}
+
 /// Wait until `f` returns `Some`, polling, at most `timeout`.
 pub fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Option<T>) -> T {
     let deadline = Instant::now() + timeout;

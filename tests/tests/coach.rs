@@ -27,14 +27,6 @@ use robocog_tests::*;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// Everything received on a topic, drained in the background (subscriber queues are bounded).
 struct Log<T>(Arc<Mutex<Vec<T>>>);
 

@@ -135,19 +135,19 @@ async fn changes_survive_a_sigkill_and_the_restart_answers_the_same() {
     assert_eq!(rep.applied, 2);
 
     // A structural change: a cup on the table, accepted; the same again is rejected, typed.
-    let cup = StructuralChange {
-        kind: ChangeKind::AddNode,
+    let cup = StructuralChange::AddNode(Box::new(NodeSpec {
         name: "cup".into(),
         node_type: "object".into(),
         parent: "world".into(),
-        pose: Transform::from_translation(0.5, -0.25, 0.8),
-        attributes: vec![Attribute {
+        edge: Edge::Free {
+            pose: Transform::from_translation(0.5, -0.25, 0.8),
+        },
+        attributes: vec![KeyValue {
             key: "radius_m".into(),
             value: AttrValue::Float(0.04),
-            ..Default::default()
         }],
         ..Default::default()
-    };
+    }));
     let req = ProposeRequest {
         header: at(2_100_000_000),
         change: cup.clone(),
@@ -181,7 +181,7 @@ async fn changes_survive_a_sigkill_and_the_restart_answers_the_same() {
             None => panic!("only {} changes published: {seen:?}", seen.len()),
         }
     }
-    let kinds: Vec<&str> = seen.iter().map(|c| c.kind.as_str()).collect();
+    let kinds: Vec<&str> = seen.iter().map(|c| c.event.kind()).collect();
     assert_eq!(
         kinds,
         ["pose_set", "attribute_set", "node_added"],
@@ -191,7 +191,7 @@ async fn changes_survive_a_sigkill_and_the_restart_answers_the_same() {
         seen.windows(2).all(|w| w[1].seq == w[0].seq + 1),
         "{seen:?}"
     );
-    assert_eq!(seen[2].node, "cup");
+    assert_eq!(seen[2].event.node(), "cup");
 
     let colour = ball_colour(&bus).await;
     assert_eq!(colour, Some(AttrValue::Text("red".into())));

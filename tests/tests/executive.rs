@@ -8,7 +8,7 @@
 use executive::touch::{say, state};
 use interfaces::msg::body::{ReachGoal, ReachKind, ReachState, ReachStatus};
 use interfaces::msg::command::{Command, CommandSource, Game, GameCommand};
-use interfaces::msg::dr::{ChangeKind, ProposeRequest, StructuralChange};
+use interfaces::msg::dr::{Edge, NodeSpec, ProposeRequest, StructuralChange, Transform};
 use interfaces::msg::executive::{ConfigurationRequest, GameLog, StateTransition};
 use interfaces::msg::speech::SayRequest;
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget};
@@ -91,19 +91,25 @@ fn ball(kind: BallEventKind) -> BallEvent {
     }
 }
 
-fn change(kind: ChangeKind, name: &str, node_type: &str) -> ProposeRequest {
+/// Adding a free node under `world`.
+fn add(name: &str, node_type: &str) -> ProposeRequest {
     ProposeRequest {
-        change: StructuralChange {
-            kind,
+        change: StructuralChange::AddNode(Box::new(NodeSpec {
             name: name.into(),
             node_type: node_type.into(),
             parent: "world".into(),
-            pose: interfaces::msg::dr::Transform {
-                translation_m: [0.7, 0.3, 0.8],
-                rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            edge: Edge::Free {
+                pose: Transform::from_translation(0.7, 0.3, 0.8),
             },
             ..Default::default()
-        },
+        })),
+        ..Default::default()
+    }
+}
+
+fn remove(name: &str) -> ProposeRequest {
+    ProposeRequest {
+        change: StructuralChange::RemoveNode { name: name.into() },
         ..Default::default()
     }
 }
@@ -308,21 +314,13 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
 
     // Structural changes pass through the Executive.
     let refused = bus
-        .call(
-            &topics::EXECUTIVE_PROPOSE,
-            &change(ChangeKind::RemoveNode, "ball", ""),
-            WAIT,
-        )
+        .call(&topics::EXECUTIVE_PROPOSE, &remove("ball"), WAIT)
         .await
         .unwrap();
     assert!(!refused.accepted);
     assert_eq!(refused.reason_code, "game_protected");
     let dup = bus
-        .call(
-            &topics::EXECUTIVE_PROPOSE,
-            &change(ChangeKind::AddNode, "ball", "ball"),
-            WAIT,
-        )
+        .call(&topics::EXECUTIVE_PROPOSE, &add("ball", "ball"), WAIT)
         .await
         .unwrap();
     assert_eq!(
@@ -331,20 +329,12 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
         "{dup:?}"
     );
     let cup = bus
-        .call(
-            &topics::EXECUTIVE_PROPOSE,
-            &change(ChangeKind::AddNode, "cup", "object"),
-            WAIT,
-        )
+        .call(&topics::EXECUTIVE_PROPOSE, &add("cup", "object"), WAIT)
         .await
         .unwrap();
     assert!(cup.accepted, "{cup:?}");
     let again = bus
-        .call(
-            &topics::EXECUTIVE_PROPOSE,
-            &change(ChangeKind::AddNode, "cup", "object"),
-            WAIT,
-        )
+        .call(&topics::EXECUTIVE_PROPOSE, &add("cup", "object"), WAIT)
         .await
         .unwrap();
     assert_eq!(again.reason_code, "duplicate_name");

@@ -8,14 +8,6 @@ use interfaces::{Bus, topics};
 use robocog_tests::*;
 use std::time::Duration;
 
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn commands_reach_the_simulated_robot_and_its_world_comes_back() {
     let ns = unique_namespace("nao");
@@ -267,14 +259,17 @@ external_inputs = ["nao/command"]
                         lines.all().join("\n")
                     ),
                 };
-                if c.kind == kind && c.node.starts_with("obstacle_") {
-                    names.insert(c.node);
+                if c.event.kind() == kind && c.event.node().starts_with("obstacle_") {
+                    names.insert(c.event.node().to_string());
                     // Collect what else comes within a second.
                     let soon = tokio::time::Instant::now() + Duration::from_secs(1);
                     return loop {
                         match tokio::time::timeout_at(soon, changes.recv()).await {
-                            Ok(Ok(c)) if c.kind == kind && c.node.starts_with("obstacle_") => {
-                                names.insert(c.node);
+                            Ok(Ok(c))
+                                if c.event.kind() == kind
+                                    && c.event.node().starts_with("obstacle_") =>
+                            {
+                                names.insert(c.event.node().to_string());
                             }
                             Ok(_) => {}
                             Err(_) => break names,
@@ -335,8 +330,10 @@ external_inputs = ["nao/command"]
     while removed.len() < added.len() {
         let left = deadline.saturating_duration_since(tokio::time::Instant::now());
         match tokio::time::timeout(left, changes.recv()).await {
-            Ok(Ok(c)) if c.kind == "node_removed" && c.node.starts_with("obstacle_") => {
-                removed.insert(c.node);
+            Ok(Ok(c))
+                if c.event.kind() == "node_removed" && c.event.node().starts_with("obstacle_") =>
+            {
+                removed.insert(c.event.node().to_string());
             }
             Ok(_) => {}
             Err(_) => {

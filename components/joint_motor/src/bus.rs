@@ -1,7 +1,8 @@
 //! Where this crate's goal types meet the `body/joint_goal` service of `interfaces::msg::body`.
 //!
 //! The joint states are the bus message itself ([`interfaces::msg::body::JointStates`]); the
-//! goal is still read into the library's [`JointGoal`] / [`JointRelease`] here. A refused goal
+//! goal is checked and read into the library's [`JointGoal`] / [`JointRelease`] here (not a copy:
+//! the checked form of the request, see [`JointGoal`]). A refused goal
 //! becomes a [`JointGoalReply`] with a typed [`JointRefusal`], the joint, the limit, the value
 //! requested and the owner, plus the library's human-readable message.
 

@@ -1,6 +1,6 @@
 //! The joint driver's data types: plain serde structs. The joint states are the bus message of
-//! `interfaces::msg::body` (re-exported here); the goal types are still the library's own,
-//! read from `body/joint_goal` in [`crate::bus`].
+//! `interfaces::msg::body` (re-exported here); the goal types are the library's own, checked
+//! and read from `body/joint_goal` in [`crate::bus`] (why: [`JointGoal`]).
 //!
 //! Units: revolute joints in rad, rad/s, rad/s², effort in N·m; prismatic joints in m, m/s, m/s²,
 //! effort in N. Times are seconds on the caller's clock (`now_s`), never read from the wall clock
@@ -87,10 +87,19 @@ pub struct JointTarget {
     pub command: JointCommand,
 }
 
-/// A goal from one client for some joints (topic `joint_motor/goal`).
+/// A goal from one client for some joints (read from a `body/joint_goal` request by
+/// [`crate::bus::request_from_msg`]; the component's start posture is one too).
 ///
 /// Accepted or refused as a whole: if any joint is unknown, out of limits or owned by another
 /// client of equal or higher priority, nothing moves (see the crate docs for ownership).
+///
+/// Why not the bus message itself (`interfaces::msg::body::JointGoal`): that one is one shape for
+/// two requests (a goal, or with `release` a give-back) and each target carries `mode` plus every
+/// mode's fields (`position`, `max_speed`, `velocity`; the others ignored), as a CDR message must
+/// without tagged fields. This type is what is left once the request is checked: a goal only
+/// (the give-back is [`JointRelease`]), with at least one target and a client, each target's
+/// command the [`JointCommand`] of its mode with exactly that mode's values. The driver and the
+/// ownership code match on it and cannot read a field that does not apply.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointGoal {
@@ -102,7 +111,8 @@ pub struct JointGoal {
     pub targets: Vec<JointTarget>,
 }
 
-/// A client gives joints back (topic `joint_motor/release`). Empty `joints` = all it owns.
+/// A client gives joints back (a `body/joint_goal` request with `release`). Empty `joints` = all
+/// it owns.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointRelease {

@@ -118,7 +118,7 @@ async fn mirror_to_dr(
             };
             let outcome = match bus.call(service, &req, Duration::from_millis(1500)).await {
                 Ok(r) if r.accepted => {
-                    tracing::info!("DR: {:?} {} (change {})", change.kind, change.name, r.seq);
+                    tracing::info!("DR: {} {} (change {})", change.kind(), change.name(), r.seq);
                     ProposalOutcome::Accepted
                 }
                 Ok(r) => {
@@ -126,9 +126,9 @@ async fn mirror_to_dr(
                         .incr(&format!("dr/propose_refused/{}", r.reason_code));
                     if propose_log.ready() {
                         tracing::warn!(
-                            "the DR refused {:?} {} ({}): {}",
-                            change.kind,
-                            change.name,
+                            "the DR refused {} {} ({}): {}",
+                            change.kind(),
+                            change.name(),
                             r.reason_code,
                             r.reason
                         );
@@ -139,9 +139,9 @@ async fn mirror_to_dr(
                     let n = propose_failed.fetch_add(1, Relaxed) + 1;
                     if propose_log.ready() {
                         tracing::warn!(
-                            "cannot propose {:?} {} to {} ({n} failed so far): {e}",
-                            change.kind,
-                            change.name,
+                            "cannot propose {} {} to {} ({n} failed so far): {e}",
+                            change.kind(),
+                            change.name(),
                             service.name()
                         );
                     }

@@ -27,7 +27,8 @@
 //! request in flight, counting what fails.
 
 use interfaces::msg::dr::{
-    AttrValue, Attribute, ChangeKind, PoseUpdate, StructuralChange, Transform, UpdateRequest,
+    AttrValue, Attribute, Edge, KeyValue, NodeSpec, PoseUpdate, StructuralChange, Transform,
+    UpdateRequest,
 };
 use interfaces::msg::nao::{GameState, NaoWorldModel};
 use spl::types::TrackedObstacle;
@@ -208,10 +209,8 @@ impl ObstacleMirror {
             .present
             .iter()
             .filter(|id| !live.contains(id))
-            .map(|id| StructuralChange {
-                kind: ChangeKind::RemoveNode,
+            .map(|id| StructuralChange::RemoveNode {
                 name: obstacle_node(*id),
-                ..Default::default()
             })
             .take(self.config.max_changes_per_cycle)
             .collect();
@@ -234,20 +233,19 @@ impl ObstacleMirror {
                 break;
             }
             room -= 1;
-            out.push(StructuralChange {
-                kind: ChangeKind::AddNode,
+            out.push(StructuralChange::AddNode(Box::new(NodeSpec {
                 name: obstacle_node(o.id),
                 node_type: "object".into(),
                 parent: "field".into(),
-                pose: planar(o.center.x_mm, o.center.y_mm, 0.0, 0.0),
-                fixed: false,
-                attributes: vec![attr(
-                    "",
-                    "obstacle_type",
-                    AttrValue::Text(o.kind.name().into()),
-                )],
-                spec_json: String::new(),
-            });
+                edge: Edge::Free {
+                    pose: planar(o.center.x_mm, o.center.y_mm, 0.0, 0.0),
+                },
+                attributes: vec![KeyValue {
+                    key: "obstacle_type".into(),
+                    value: AttrValue::Text(o.kind.name().into()),
+                }],
+                ..Default::default()
+            })));
         }
         out
     }
@@ -256,23 +254,27 @@ impl ObstacleMirror {
     /// a duplicate name counts as present (the node is there, e.g. after a bridge restart); a
     /// removal refused because the node is unknown counts as done.
     pub fn outcome(&mut self, change: &StructuralChange, outcome: &ProposalOutcome) {
-        let Some(id) = obstacle_id(&change.name) else {
+        let Some(id) = obstacle_id(change.name()) else {
             return;
         };
-        match (change.kind, outcome) {
-            (ChangeKind::AddNode, ProposalOutcome::Accepted) => {
+        match (change, outcome) {
+            (StructuralChange::AddNode(_), ProposalOutcome::Accepted) => {
                 self.present.insert(id);
             }
-            (ChangeKind::AddNode, ProposalOutcome::Refused(code)) if code == "duplicate_name" => {
+            (StructuralChange::AddNode(_), ProposalOutcome::Refused(code))
+                if code == "duplicate_name" =>
+            {
                 self.present.insert(id);
             }
-            (ChangeKind::AddNode, ProposalOutcome::Refused(_)) => {
+            (StructuralChange::AddNode(_), ProposalOutcome::Refused(_)) => {
                 self.refused.insert(id);
             }
-            (ChangeKind::RemoveNode, ProposalOutcome::Accepted) => {
+            (StructuralChange::RemoveNode { .. }, ProposalOutcome::Accepted) => {
                 self.present.remove(&id);
             }
-            (ChangeKind::RemoveNode, ProposalOutcome::Refused(code)) if code == "unknown_node" => {
+            (StructuralChange::RemoveNode { .. }, ProposalOutcome::Refused(code))
+                if code == "unknown_node" =>
+            {
                 self.present.remove(&id);
             }
             _ => {}
@@ -447,12 +449,18 @@ mod tests {
         assert!(m.changes(&[track(7, 1, 0.0)]).is_empty());
         let c = m.changes(&[track(7, 3, 0.0)]);
         assert_eq!(c.len(), 1);
-        assert_eq!(c[0].kind, ChangeKind::AddNode);
-        assert_eq!(c[0].name, "obstacle_7");
-        assert_eq!(c[0].node_type, "object");
-        assert_eq!(c[0].parent, "field");
-        assert_eq!(c[0].pose.translation_m, [1.007, -0.5, 0.0]);
-        assert_eq!(c[0].attributes[0].value, AttrValue::Text("opponent".into()));
+        let StructuralChange::AddNode(spec) = &c[0] else {
+            panic!("an addition: {c:?}");
+        };
+        assert_eq!(spec.name, "obstacle_7");
+        assert_eq!(spec.node_type, "object");
+        assert_eq!(spec.parent, "field");
+        assert!(
+            matches!(&spec.edge, Edge::Free { pose } if pose.translation_m == [1.007, -0.5, 0.0]),
+            "{spec:?}"
+        );
+        assert_eq!(spec.attributes[0].key, "obstacle_type");
+        assert_eq!(spec.attributes[0].value, AttrValue::Text("opponent".into()));
         // Until the DR accepts it, it is neither updated nor proposed twice... unless it failed.
         let mut req = UpdateRequest::default();
         m.add_updates(&[track(7, 3, 0.0)], 5_000_000_000, &mut req);
@@ -480,9 +488,12 @@ mod tests {
         assert_eq!(get("observations"), Some(AttrValue::Int(4)));
         // The track expires: the node is removed.
         let c = m.changes(&[]);
-        assert_eq!(c.len(), 1);
-        assert_eq!(c[0].kind, ChangeKind::RemoveNode);
-        assert_eq!(c[0].name, "obstacle_7");
+        assert_eq!(
+            c,
+            [StructuralChange::RemoveNode {
+                name: "obstacle_7".into()
+            }]
+        );
         m.outcome(&c[0], &ProposalOutcome::Accepted);
         assert!(m.changes(&[]).is_empty());
         assert_eq!(m.present().count(), 0);
@@ -503,7 +514,7 @@ mod tests {
             assert!(c.len() <= 2, "at most two proposals per cycle");
             for ch in &c {
                 m.outcome(ch, &ProposalOutcome::Accepted);
-                added.push(ch.name.clone());
+                added.push(ch.name().to_string());
             }
         }
         assert_eq!(

@@ -423,7 +423,7 @@ async fn fetch_dr_snapshots(bus: interfaces::Bus, intake: Arc<Intake>, wants: Ar
         match interfaces::codec::encode(&snap, SnapshotData::TYPE_NAME) {
             Ok(payload) => {
                 tracing::info!(
-                    nodes = snap.nodes,
+                    nodes = snap.snapshot.nodes.len() + 1,
                     last_seq = snap.last_seq,
                     "DR snapshot for the viewer's copy"
                 );

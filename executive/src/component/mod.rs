@@ -35,7 +35,7 @@ use std::time::Duration;
 
 use interfaces::bus::{CallError, ErrorCode, ServiceError};
 use interfaces::msg::body::{JointGoal, JointRefusal};
-use interfaces::msg::dr::{GetNodeRequest, ProposeReply, ProposeRequest};
+use interfaces::msg::dr::{GetNodeRequest, ProposeReply, ProposeRequest, StructuralChange};
 use interfaces::msg::executive::{Configuration, ConfigurationRequest, GameLog, StateTransition};
 use interfaces::msg::speech::{SayRequest, SpeakingState};
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrackState};
@@ -235,17 +235,27 @@ async fn propose_through(
     req: ProposeRequest,
 ) -> Result<ProposeReply, ServiceError> {
     let c = &req.change;
-    let adding = c.kind == interfaces::msg::dr::ChangeKind::AddNode;
+    // The type of an added node (`None` for a removal or a move).
+    let added_type = match c {
+        StructuralChange::AddNode(spec) => Some(spec.node_type.as_str()),
+        _ => None,
+    };
+    let name = c.name().trim();
     let facts = Facts {
         game_on,
-        name_exists: adding && !c.name.trim().is_empty() && node_exists(bus, c.name.trim()).await?,
-        type_present: adding
-            && game_on
-            && settings
-                .unique_types
-                .iter()
-                .any(|t| t.eq_ignore_ascii_case(&c.node_type))
-            && node_exists(bus, &c.node_type.to_lowercase()).await?,
+        name_exists: added_type.is_some() && !name.is_empty() && node_exists(bus, name).await?,
+        type_present: match added_type {
+            Some(t)
+                if game_on
+                    && settings
+                        .unique_types
+                        .iter()
+                        .any(|u| u.eq_ignore_ascii_case(t)) =>
+            {
+                node_exists(bus, &t.to_lowercase()).await?
+            }
+            _ => false,
+        },
     };
     if let Err(r) = propose::check(c, settings, &facts) {
         return Ok(ProposeReply {

@@ -12,9 +12,11 @@
 //! - Time: `stamp_ns` fields are nanoseconds on the DR's clock (the bus clock, a replay's virtual
 //!   clock); in queries 0 means "the latest state". Update requests take the measurement's time
 //!   from `header.stamp_ns` (0 = now on the service's clock).
-//! - Rich payloads the library describes with optional fields (a whole node description, a
-//!   snapshot, a change event) travel as JSON text in `*_json` fields, in the library's own serde
-//!   format; everything a hot path needs (transforms, poses, attribute updates) is typed.
+//! - Everything is typed, down to a whole node description ([`NodeSpec`]: its edge with the
+//!   joint's limits, attributes, camera intrinsics, collision shapes), a snapshot ([`Snapshot`])
+//!   and a change event ([`ChangeEvent`]). These mirror the `world_model` library's serde types
+//!   one to one; the conversions both ways are in one place, `world_model::bus`, so a snapshot
+//!   taken, sent and restored loses nothing.
 //! - A structural proposal that breaks an integrity rule is a normal reply (`accepted = false`
 //!   with the reason), not a transport error. Unknown names come back as a `NotFound`
 //!   [`crate::ServiceError`], malformed requests as `BadRequest`.
@@ -66,6 +68,17 @@ impl Default for AttrValue {
     }
 }
 
+impl AttrValue {
+    /// Whether every number in it is finite (flags, integers and text always are).
+    pub fn is_finite(&self) -> bool {
+        match self {
+            AttrValue::Float(f) => f.is_finite(),
+            AttrValue::Vec3(v) => v.iter().all(|x| x.is_finite()),
+            AttrValue::Bool(_) | AttrValue::Int(_) | AttrValue::Text(_) => true,
+        }
+    }
+}
+
 /// One attribute of a node: `node.key = value`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Attribute {
@@ -86,6 +99,157 @@ pub struct PoseUpdate {
 pub struct JointUpdate {
     pub joint: String,
     pub value: f64,
+}
+
+/// One attribute inside a [`NodeSpec`] (the node is the one the spec describes).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct KeyValue {
+    pub key: String,
+    pub value: AttrValue,
+}
+
+/// How a joint moves.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum JointKind {
+    /// Rotation about the axis, within position limits (rad).
+    #[default]
+    Revolute,
+    /// Rotation about the axis without position limits (rad).
+    Continuous,
+    /// Translation along the axis (m).
+    Prismatic,
+    /// No motion (a model's fixed joint; never the edge of a node).
+    Fixed,
+}
+
+/// Limits of a joint: position (rad or m), velocity (rad/s or m/s), effort (N m or N). A limit
+/// that does not exist is infinite (`lower` -inf, the others +inf; a continuous joint's position),
+/// never NaN. (JSON has no infinity: `robocog topic echo` shows such a limit as `null`.)
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointLimits {
+    pub lower: f64,
+    pub upper: f64,
+    pub velocity: f64,
+    pub effort: f64,
+}
+
+/// How a node hangs from its parent.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Edge {
+    /// A constant transform.
+    Fixed {
+        /// `parent_T_node`.
+        origin: Transform,
+    },
+    /// A pose set by perception or odometry (objects, agents).
+    Free {
+        /// The current `parent_T_node`.
+        pose: Transform,
+    },
+    /// A robot joint: `parent_T_node = origin * motion(value)`.
+    Joint {
+        /// Joint name (unique in the graph).
+        joint: String,
+        /// Not [`JointKind::Fixed`].
+        kind: JointKind,
+        /// `parent_T_jointframe`.
+        origin: Transform,
+        /// Axis in the joint frame.
+        axis: [f64; 3],
+        limits: JointLimits,
+        /// Current value (rad or m).
+        value: f64,
+    },
+}
+
+impl Default for Edge {
+    /// A free edge at the identity.
+    fn default() -> Self {
+        Edge::Free {
+            pose: Transform::default(),
+        }
+    }
+}
+
+/// Pinhole intrinsics of a camera (px) and its valid depth range (m). The camera frame is an
+/// optical frame (z forward, x right, y down): `u = fx x / z + cx`, `v = fy y / z + cy`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraIntrinsics {
+    /// Camera name (`head_rgbd`).
+    pub name: String,
+    /// Its optical frame (a node).
+    pub frame: String,
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+}
+
+/// The camera of a node, for `camera` nodes.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub enum Camera {
+    /// Not a camera.
+    #[default]
+    None,
+    /// A pinhole camera.
+    Pinhole(CameraIntrinsics),
+}
+
+/// Collision geometry, centred on its origin (m).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Shape {
+    /// A box; full side lengths along x, y, z.
+    Box {
+        size_m: [f64; 3],
+    },
+    /// A cylinder along its local z axis.
+    Cylinder {
+        radius_m: f64,
+        length_m: f64,
+    },
+    /// A capsule along its local z axis (`length_m`: the cylindrical part).
+    Capsule {
+        radius_m: f64,
+        length_m: f64,
+    },
+    Sphere {
+        radius_m: f64,
+    },
+    /// A mesh, by its URDF file name (robocog does no mesh collision).
+    Mesh {
+        filename: String,
+    },
+}
+
+/// One collision element of a node: a shape placed by `origin` in the node frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CollisionShape {
+    pub origin: Transform,
+    pub shape: Shape,
+}
+
+/// A complete description of one node: what `dr/propose` adds, what a snapshot and a
+/// `NodeAdded` change hold, what `dr/get_node` reports in full.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct NodeSpec {
+    /// Unique name (also the frame name).
+    pub name: String,
+    /// Node type name (`ball`, `object`, `robot`, `link`, `camera`, `landmark`, ...).
+    pub node_type: String,
+    /// The parent node.
+    pub parent: String,
+    /// The edge from the parent, with its current pose or joint value.
+    pub edge: Edge,
+    /// Typed attributes, each key once (sorted by key in what the DR sends).
+    pub attributes: Vec<KeyValue>,
+    /// Intrinsics, for `camera` nodes.
+    pub camera: Camera,
+    /// Collision geometry in the node frame, for `link` nodes.
+    pub collision: Vec<CollisionShape>,
 }
 
 /// `dr/get_node` request: one node by name.
@@ -115,9 +279,9 @@ pub struct NodeInfo {
     pub pose: Transform,
     /// Every attribute, sorted by key (`node` is this node).
     pub attributes: Vec<Attribute>,
-    /// The library's full node description (`NodeSpec`: edge, limits, intrinsics, collision) as
-    /// JSON; empty for `world`.
-    pub spec_json: String,
+    /// The full node description (edge with limits, intrinsics, collision); for `world`, which
+    /// has no parent and so no description, the default (an empty `name`).
+    pub spec: NodeSpec,
 }
 
 /// `dr/transform` request: `target_T_source`.
@@ -163,32 +327,45 @@ pub struct UpdateReply {
     pub last_seq: u64,
 }
 
-/// What a structural change does.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub enum ChangeKind {
-    /// Add node `name` of type `node_type` under `parent` at `pose` (free edge, or fixed when
-    /// `fixed`), with `attributes`; or, when `spec_json` is not empty, the library `NodeSpec` it
-    /// holds (cameras, links, joints), the other fields ignored.
-    #[default]
-    AddNode,
+/// A structural change of the graph, voted by the integrity rules.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum StructuralChange {
+    /// Add a node: a free or fixed one, or a link with its joint, a camera with its intrinsics.
+    AddNode(Box<NodeSpec>),
     /// Remove leaf node `name`.
-    RemoveNode,
-    /// Move `name` under `parent` with free pose `pose` (`parent_T_node`).
-    Reparent,
+    RemoveNode { name: String },
+    /// Move `name` under `new_parent` with free pose `pose` (`new_parent_T_node`).
+    Reparent {
+        name: String,
+        new_parent: String,
+        pose: Transform,
+    },
 }
 
-/// A structural change of the graph, voted by the integrity rules.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct StructuralChange {
-    pub kind: ChangeKind,
-    pub name: String,
-    pub node_type: String,
-    pub parent: String,
-    pub pose: Transform,
-    pub fixed: bool,
-    /// Attributes of an added node (their `node` field is ignored).
-    pub attributes: Vec<Attribute>,
-    pub spec_json: String,
+impl Default for StructuralChange {
+    /// Adding a default (invalid, nameless) node.
+    fn default() -> Self {
+        StructuralChange::AddNode(Box::default())
+    }
+}
+
+impl StructuralChange {
+    /// The snake_case name of the change: `add_node`, `remove_node` or `reparent`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            StructuralChange::AddNode(_) => "add_node",
+            StructuralChange::RemoveNode { .. } => "remove_node",
+            StructuralChange::Reparent { .. } => "reparent",
+        }
+    }
+
+    /// The node the change is about.
+    pub fn name(&self) -> &str {
+        match self {
+            StructuralChange::AddNode(spec) => &spec.name,
+            StructuralChange::RemoveNode { name } | StructuralChange::Reparent { name, .. } => name,
+        }
+    }
 }
 
 /// `dr/propose` request (time of the change: `header.stamp_ns`, 0 = now).
@@ -305,29 +482,117 @@ pub struct SnapshotRequest {
     pub header: Header,
 }
 
-/// `dr/snapshot` reply, and `dr/restore` request: the library's snapshot JSON (current state,
-/// no history).
+/// A body part declared for predicates: a chain from a shoulder-like frame to a tip.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct BodyPart {
+    /// Name (`left_arm`).
+    pub name: String,
+    /// The robot agent it belongs to.
+    pub robot: String,
+    /// Frame at the first joint of the chain (the shoulder).
+    pub base_frame: String,
+    /// Tip frame (the hand).
+    pub tip_frame: String,
+    /// Upper bound of the shoulder-to-tip distance over all joint values (m).
+    pub reach_m: f64,
+}
+
+/// The state of the graph, without history.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Snapshot {
+    /// Time of the newest change included (ns, DR clock).
+    pub stamp_ns: u64,
+    /// Every node except `world`, each after its parent, with its edge (pose, joint value),
+    /// attributes, intrinsics and collision shapes.
+    pub nodes: Vec<NodeSpec>,
+    /// Declared body parts.
+    pub body_parts: Vec<BodyPart>,
+}
+
+/// `dr/snapshot` reply, and `dr/restore` request: the current state (no history).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct SnapshotData {
     pub header: Header,
-    pub json: String,
-    /// Nodes in the graph (including `world`).
-    pub nodes: u32,
-    /// Sequence number of the last change included.
+    pub snapshot: Snapshot,
+    /// Sequence number of the last change included (ignored in a `dr/restore` request).
     pub last_seq: u64,
 }
 
-/// A change of the live graph, published on `dr/changes` in order.
+/// One change of the live graph. Times are ns on the DR clock.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub enum ChangeEvent {
+    /// A node was added.
+    NodeAdded { stamp_ns: u64, spec: Box<NodeSpec> },
+    /// A node was removed.
+    NodeRemoved { stamp_ns: u64, name: String },
+    /// A node moved under another parent (`pose` = `new_parent_T_node`).
+    Reparented {
+        stamp_ns: u64,
+        name: String,
+        new_parent: String,
+        pose: Transform,
+    },
+    /// A joint value was set (rad or m).
+    JointSet {
+        stamp_ns: u64,
+        joint: String,
+        value: f64,
+    },
+    /// A free pose was set (`parent_T_node`).
+    PoseSet {
+        stamp_ns: u64,
+        node: String,
+        pose: Transform,
+    },
+    /// An attribute was set.
+    AttributeSet {
+        stamp_ns: u64,
+        node: String,
+        key: String,
+        value: AttrValue,
+    },
+    /// A body part was declared.
+    BodyPartDeclared { stamp_ns: u64, part: BodyPart },
+    /// The whole graph was replaced (`dr/restore`): a copy of it asks `dr/snapshot` again.
+    #[default]
+    Restored,
+}
+
+impl ChangeEvent {
+    /// The snake_case name of the change: `node_added`, `node_removed`, `reparented`,
+    /// `joint_set`, `pose_set`, `attribute_set`, `body_part_declared` or `restored`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ChangeEvent::NodeAdded { .. } => "node_added",
+            ChangeEvent::NodeRemoved { .. } => "node_removed",
+            ChangeEvent::Reparented { .. } => "reparented",
+            ChangeEvent::JointSet { .. } => "joint_set",
+            ChangeEvent::PoseSet { .. } => "pose_set",
+            ChangeEvent::AttributeSet { .. } => "attribute_set",
+            ChangeEvent::BodyPartDeclared { .. } => "body_part_declared",
+            ChangeEvent::Restored => "restored",
+        }
+    }
+
+    /// The node (the joint, the body part) it concerns; empty for `restored`.
+    pub fn node(&self) -> &str {
+        match self {
+            ChangeEvent::NodeAdded { spec, .. } => &spec.name,
+            ChangeEvent::NodeRemoved { name, .. } | ChangeEvent::Reparented { name, .. } => name,
+            ChangeEvent::JointSet { joint, .. } => joint,
+            ChangeEvent::PoseSet { node, .. } | ChangeEvent::AttributeSet { node, .. } => node,
+            ChangeEvent::BodyPartDeclared { part, .. } => &part.name,
+            ChangeEvent::Restored => "",
+        }
+    }
+}
+
+/// A change of the live graph, published on `dr/changes` in order (`header.stamp_ns` is the
+/// change's time).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct DrChange {
     pub header: Header,
     /// Change sequence number of the service (continues across restarts with a state dir).
     pub seq: u64,
-    /// `node_added`, `node_removed`, `reparented`, `joint_set`, `pose_set`, `attribute_set`,
-    /// `body_part_declared`, or `restored` (the whole graph was replaced).
-    pub kind: String,
-    /// The node (or joint) it concerns; empty for `restored`.
-    pub node: String,
-    /// The library's `ChangeEvent` as JSON (empty for `restored`).
-    pub event_json: String,
+    pub event: ChangeEvent,
 }

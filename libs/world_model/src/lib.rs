@@ -4,8 +4,8 @@
 //! surroundings and the agents in them are represented. Perception components update it, the
 //! executive and the IK read it, and anyone can take a private copy of it ([`graph::SceneGraph::fork`])
 //! to simulate virtual actions before doing them for real. This crate is the pure library: no
-//! bus, no clock, no threads. The `deep_representation` process serves it on the bus; the viewer
-//! mirrors it.
+//! bus connection, no clock, no threads (only the conversions of its types to the bus messages,
+//! [`mod@bus`]). The `deep_representation` process serves it on the bus; the viewer mirrors it.
 //!
 //! ## Frames
 //!
@@ -74,8 +74,8 @@
 //! unique too. Keep them in `[a-z0-9_]` so they map one to one to PDDL names. Models live in
 //! `models/` at the repository root: `loki.urdf`, `spl_field.toml`.
 //!
-//! Bus-facing data types are all in [`types`]; their CDR-safe mirrors for the bus are in
-//! `interfaces::msg::dr`.
+//! Bus-facing data types are all in [`types`]; their CDR mirrors for the bus are in
+//! `interfaces::msg::dr`, and [`mod@bus`] converts between the two (the one place that does).
 //!
 //! ## The service
 //!
@@ -112,6 +112,7 @@
 //! ```
 
 pub mod bench;
+pub mod bus;
 pub mod error;
 pub mod field;
 pub mod graph;

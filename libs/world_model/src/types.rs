@@ -1,8 +1,9 @@
 //! Plain serde data types that cross process boundaries: stamps, poses, attribute values, node
 //! descriptions, structural proposals, change events and snapshots.
 //!
-//! They are kept in this one module, with no behaviour beyond conversions, so that they can move
-//! into the `interfaces` crate unchanged once the bus carries DR traffic.
+//! They are kept in this one module, with no behaviour beyond conversions. They are the format
+//! of the state folder ([`crate::persist`], JSON); on the bus their CDR mirrors in
+//! `interfaces::msg::dr` travel, converted by [`crate::bus`].
 //!
 //! Units: metres and radians; time as [`Stamp`] (u64 nanoseconds on the caller's clock).
 
@@ -443,6 +444,21 @@ pub enum ChangeEvent {
         /// The body part.
         part: BodyPartSpec,
     },
+}
+
+impl ChangeEvent {
+    /// When it happened.
+    pub fn stamp(&self) -> Stamp {
+        match self {
+            ChangeEvent::NodeAdded { stamp, .. }
+            | ChangeEvent::NodeRemoved { stamp, .. }
+            | ChangeEvent::Reparented { stamp, .. }
+            | ChangeEvent::JointSet { stamp, .. }
+            | ChangeEvent::PoseSet { stamp, .. }
+            | ChangeEvent::AttributeSet { stamp, .. }
+            | ChangeEvent::BodyPartDeclared { stamp, .. } => *stamp,
+        }
+    }
 }
 
 /// Tag of the snapshot format.

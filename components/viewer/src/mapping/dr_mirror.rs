@@ -10,8 +10,12 @@ impl Mapper {
     }
 
     pub(super) fn dr_snapshot(&mut self, m: &dr::SnapshotData, out: &mut Vec<Logged>) {
-        match SceneGraph::restore_json(&m.json) {
+        let restored = Snapshot::try_from(&m.snapshot)
+            .map_err(|e| e.to_string())
+            .and_then(|s| SceneGraph::restore(&s).map_err(|e| e.to_string()));
+        match restored {
             Ok(g) => {
+                let nodes = g.len();
                 self.dr.graph = Some(g);
                 self.dr.last_seq = m.last_seq;
                 self.dr.wants_snapshot = false;
@@ -19,8 +23,8 @@ impl Mapper {
                 out.push(Logged::new(
                     "log/dr",
                     text(format!(
-                        "snapshot: {} nodes, up to change #{}",
-                        m.nodes, m.last_seq
+                        "snapshot: {nodes} nodes, up to change #{}",
+                        m.last_seq
                     )),
                 ));
             }
@@ -33,10 +37,10 @@ impl Mapper {
 
     pub(super) fn dr_change(&mut self, m: &dr::DrChange, out: &mut Vec<Logged>) {
         // Joint values follow the joint states at 100 Hz: not worth a text line each.
-        if m.kind != "joint_set" {
+        if !matches!(m.event, dr::ChangeEvent::JointSet { .. }) {
             out.push(Logged::new(
                 "log/dr",
-                text(format!("#{} {} {}", m.seq, m.kind, m.node)),
+                text(format!("#{} {} {}", m.seq, m.event.kind(), m.event.node())),
             ));
         }
         let Some(g) = &mut self.dr.graph else {
@@ -46,13 +50,13 @@ impl Mapper {
         if m.seq <= self.dr.last_seq {
             return; // already in the snapshot
         }
-        if m.kind == "restored" || m.seq != self.dr.last_seq + 1 {
+        if matches!(m.event, dr::ChangeEvent::Restored) || m.seq != self.dr.last_seq + 1 {
             self.dr.wants_snapshot = true;
             self.dr.last_seq = m.seq;
             return;
         }
         self.dr.last_seq = m.seq;
-        let applied = serde_json::from_str::<ChangeEvent>(&m.event_json)
+        let applied = ChangeEvent::try_from(&m.event)
             .map_err(|e| e.to_string())
             .and_then(|ev| g.apply(&ev).map_err(|e| e.to_string()));
         match applied {

@@ -291,8 +291,7 @@ fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
     assert!(mp.wants_dr_snapshot());
     let mut g = world_model::scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
     let snap = dr::SnapshotData {
-        json: g.snapshot_json(),
-        nodes: g.len() as u32,
+        snapshot: (&g.snapshot()).into(),
         last_seq: 10,
         ..Default::default()
     };
@@ -311,9 +310,7 @@ fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
     let ev = g.take_log().pop().unwrap();
     let change = |seq| dr::DrChange {
         seq,
-        kind: "pose_set".into(),
-        node: "ball".into(),
-        event_json: serde_json::to_string(&ev).unwrap(),
+        event: (&ev).into(),
         ..Default::default()
     };
     map(&mut mp, "dr/changes", &change(11), 3 * S);
