@@ -523,15 +523,35 @@ impl Bus {
         request: &Req,
         timeout: Duration,
     ) -> Result<Rep, CallError> {
-        let name = service.name();
         let bytes = codec::encode(request, Req::TYPE_NAME).map_err(CallError::Codec)?;
+        let reply = self
+            .call_payload(service.name(), Req::TYPE_NAME, bytes, timeout)
+            .await?;
+        let wire: WireReply<Rep> =
+            codec::decode(&reply, Rep::TYPE_NAME).map_err(CallError::Codec)?;
+        match wire {
+            WireReply::Ok(rep) => Ok(rep),
+            WireReply::Err(e) => Err(CallError::Remote(e)),
+        }
+    }
+
+    /// Send one request payload (already encoded, of type `req_type`) to service `name` and
+    /// return the first reply's payload: a wire reply, decoded by [`Bus::call`] or
+    /// [`crate::raw::decode_reply`].
+    pub(crate) async fn call_payload(
+        &self,
+        name: &str,
+        req_type: &str,
+        bytes: Vec<u8>,
+        timeout: Duration,
+    ) -> Result<Vec<u8>, CallError> {
         let started = Instant::now();
         let replies = self
             .inner
             .session
             .get(topic::service_key(self.namespace(), name))
             .payload(bytes)
-            .encoding(crate::raw::encoding_for(Req::TYPE_NAME))
+            .encoding(crate::raw::encoding_for(req_type))
             .timeout(timeout)
             .await
             .map_err(|e| CallError::Zenoh(e.to_string()))?;
@@ -539,15 +559,7 @@ impl Bus {
             tokio::time::timeout(timeout + Duration::from_millis(200), replies.recv_async()).await;
         match first {
             Ok(Ok(reply)) => match reply.into_result() {
-                Ok(sample) => {
-                    let wire: WireReply<Rep> =
-                        codec::decode(&sample.payload().to_bytes(), Rep::TYPE_NAME)
-                            .map_err(CallError::Codec)?;
-                    match wire {
-                        WireReply::Ok(rep) => Ok(rep),
-                        WireReply::Err(e) => Err(CallError::Remote(e)),
-                    }
-                }
+                Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
                 Err(e) => {
                     let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
                     if why.eq_ignore_ascii_case("timeout") {
@@ -1053,9 +1065,10 @@ impl ServiceError {
     }
 }
 
-/// A reply on the wire: the value or the error.
+/// A reply on the wire: the value or the error (CDR: the variant index, a `u32`, then the
+/// value or the [`ServiceError`]).
 #[derive(Debug, Serialize, Deserialize)]
-enum WireReply<T> {
+pub(crate) enum WireReply<T> {
     Ok(T),
     Err(ServiceError),
 }
@@ -1113,6 +1126,59 @@ mod tests {
             .await
             .expect("a frame within 10 s")
             .unwrap()
+    }
+
+    /// A foreign client's request that does not decode gets a `BadRequest` reply, counted in
+    /// `bad_requests/<service>`, and the service goes on answering; a good raw request gets the
+    /// value back.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn raw_calls_get_bad_request_for_garbage_and_the_value_otherwise() {
+        use crate::msg::std_msgs::Text;
+        use crate::raw::RawReply;
+        let (_router, server, client) = two_buses().await;
+        let _served = server
+            .serve(&topics::ECHO, |req: Text| async move { Ok(req) })
+            .await
+            .unwrap();
+        let t = Duration::from_secs(5);
+        let garbage: [Vec<u8>; 4] = [
+            vec![],
+            vec![0x00, 0x01],
+            vec![0xff, 0xff, 0x00, 0x00, 1, 2, 3, 4],
+            // A good encapsulation, a header's stamp and sequence number, and then its frame id's
+            // length: 2^32-1.
+            [&codec::CDR_LE_HEADER[..], &[0; 16], &[0xff; 4]].concat(),
+        ];
+        for g in garbage {
+            let reply = client
+                .raw_call("echo", "robocog.Text", g.clone(), t)
+                .await
+                .unwrap();
+            match reply {
+                RawReply::Err(e) => assert_eq!(e.code, ErrorCode::BadRequest, "{g:02x?}: {e}"),
+                RawReply::Ok(_) => panic!("{g:02x?} was answered with a value"),
+            }
+        }
+        assert_eq!(
+            server
+                .counters()
+                .counter("bad_requests/echo")
+                .load(Ordering::Relaxed),
+            4
+        );
+        let hello = Text {
+            text: "hello".into(),
+            ..Text::default()
+        };
+        let bytes = codec::encode(&hello, "robocog.Text").unwrap();
+        let reply = client
+            .raw_call("echo", "robocog.Text", bytes, t)
+            .await
+            .unwrap();
+        let back: Text = reply.value().unwrap().unwrap();
+        assert_eq!(back.text, "hello");
+        let typed = client.call(&topics::ECHO, &hello, t).await.unwrap();
+        assert_eq!(typed.text, "hello");
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

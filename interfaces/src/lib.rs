@@ -41,5 +41,5 @@ pub use clock::{Clock, Moment};
 pub use header::Header;
 pub use msg::{Borrowable, Message};
 pub use node::{Interface, NodeArgs, Shutdown};
-pub use raw::{RawListener, RawPublisher, RawSample, RawSubscriber};
+pub use raw::{RawListener, RawPublisher, RawReply, RawSample, RawSubscriber};
 pub use topic::{Service, Topic};

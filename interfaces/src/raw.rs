@@ -15,11 +15,17 @@
 //! - [`Bus::raw_publisher`] publishes bytes on a topic with a type name given at run time,
 //!   announced by a publisher liveliness token like a component's.
 //!
+//! - [`Bus::raw_call`] sends a request payload to a service by name and hands back its
+//!   [`RawReply`]: the typed error, or the reply to decode (for tools, and for tests that speak to
+//!   a service as a foreign client would).
+//!
 //! Raw subscriptions declare no liveliness token: the tools watch the graph without showing in
 //! it as subscribers.
 
-use crate::bus::{Bus, BusError, offer_dropping_oldest};
+use crate::bus::{Bus, BusError, CallError, ServiceError, WireReply, offer_dropping_oldest};
+use crate::codec::{self, CodecError};
 use crate::liveliness;
+use crate::msg::Message;
 use crate::ratelimit::RateLimiter;
 use crate::topic;
 use std::borrow::Cow;
@@ -325,6 +331,62 @@ impl Bus {
             type_name: type_name.to_string(),
             _token: token,
         })
+    }
+
+    /// Call service `name` with a payload of type `type_name` as it is (no check that it decodes:
+    /// a tool forwards what it was given, a test sends what a foreign client would), waiting at
+    /// most `timeout`. A server's typed error comes back as [`RawReply::Err`], a transport
+    /// failure as the [`CallError`] of [`Bus::call`].
+    pub async fn raw_call(
+        &self,
+        name: &str,
+        type_name: &str,
+        payload: Vec<u8>,
+        timeout: Duration,
+    ) -> Result<RawReply, CallError> {
+        if !topic::is_valid_name(name) {
+            return Err(CallError::Zenoh(format!("{name:?} is not a service name")));
+        }
+        let wire = self.call_payload(name, type_name, payload, timeout).await?;
+        decode_reply(wire).map_err(CallError::Codec)
+    }
+}
+
+/// A service's reply, decoded as far as it can be without knowing the reply type.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawReply {
+    /// The service answered with a value: the reply payload as it came, read with
+    /// [`RawReply::value`].
+    Ok(Vec<u8>),
+    /// The service refused or failed the request.
+    Err(ServiceError),
+}
+
+impl RawReply {
+    /// The value of an `Ok` reply as `T`; `None` for an error reply.
+    pub fn value<T: Message>(&self) -> Option<Result<T, CodecError>> {
+        match self {
+            RawReply::Ok(wire) => Some(codec::decode::<WireReply<T>>(wire, T::TYPE_NAME).and_then(
+                |w| match w {
+                    WireReply::Ok(v) => Ok(v),
+                    // Only a payload built by hand gets here: decode_reply read it as a value.
+                    WireReply::Err(_) => Err(CodecError::Decode {
+                        type_name: T::TYPE_NAME,
+                        source: cdr::Error::Message("an error reply, not a value".into()),
+                    }),
+                },
+            )),
+            RawReply::Err(_) => None,
+        }
+    }
+}
+
+/// Read a reply payload as far as its kind: an error is decoded whole, a value is kept as it is.
+pub fn decode_reply(wire: Vec<u8>) -> Result<RawReply, CodecError> {
+    // `()` reads nothing, so this decodes the variant and, for an error, the error itself.
+    match codec::decode::<WireReply<()>>(&wire, "reply")? {
+        WireReply::Ok(()) => Ok(RawReply::Ok(wire)),
+        WireReply::Err(e) => Ok(RawReply::Err(e)),
     }
 }
 

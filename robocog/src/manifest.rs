@@ -243,6 +243,31 @@ struct Loaded {
     raw: RawManifest,
 }
 
+/// The largest manifest file read (a graph's manifest is a few kilobytes).
+const MAX_MANIFEST_BYTES: u64 = 1 << 20;
+
+/// A manifest's text: a regular file of at most [`MAX_MANIFEST_BYTES`] (an include naming a
+/// device, a FIFO or a huge file is refused before it is read).
+fn read_manifest_file(path: &Path) -> std::io::Result<String> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    if meta.len() > MAX_MANIFEST_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "{} bytes, more than a manifest's {MAX_MANIFEST_BYTES}",
+                meta.len()
+            ),
+        ));
+    }
+    std::fs::read_to_string(path)
+}
+
 fn load_tree(
     path: &Path,
     stack: &mut Vec<PathBuf>,
@@ -254,7 +279,7 @@ fn load_tree(
         file: path.to_path_buf(),
         line,
     };
-    let src = match std::fs::read_to_string(path) {
+    let src = match read_manifest_file(path) {
         Ok(s) => s,
         Err(e) => {
             let origin = from.unwrap_or_else(|| at(0));

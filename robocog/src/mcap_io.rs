@@ -429,11 +429,13 @@ impl RecordingReader {
                     }
                 }
                 // The CRC held: parse every inner record before delivering any of them.
-                let inner = mcap::read::ChunkReader::new(header, &data)
-                    .map_err(|e| malformed("chunk", offset, e))?;
-                let mut records = Vec::new();
-                for r in inner {
-                    records.push(r.map_err(|e| malformed("chunk", offset, e))?);
+                let (records, damage) = chunk_records(&data);
+                if let Some(detail) = damage {
+                    return Err(Damage::Malformed {
+                        record: "chunk",
+                        offset,
+                        detail,
+                    });
                 }
                 for r in records {
                     self.absorb(r, offset)?;
@@ -535,10 +537,18 @@ impl RecordingReader {
         }
         if self.in_summary {
             // Summary records repeat what the data section held; check they parse, no more.
-            mcap::parse_record(opcode, &body).map_err(|e| malformed(name, start, e))?;
+            parse_record(opcode, &body).map_err(|detail| Damage::Malformed {
+                record: name,
+                offset: start,
+                detail,
+            })?;
             return Ok(true);
         }
-        let record = mcap::parse_record(opcode, &body).map_err(|e| malformed(name, start, e))?;
+        let record = parse_record(opcode, &body).map_err(|detail| Damage::Malformed {
+            record: name,
+            offset: start,
+            detail,
+        })?;
         self.absorb(record, start)?;
         Ok(true)
     }
@@ -567,29 +577,170 @@ impl RecordingReader {
             return; // a compressed stream cannot be cut and resumed
         }
         at += 8;
-        let mut found = Vec::new();
-        while let (Some(&opcode), Some(len)) = (rest.get(at), le_u64(&rest, at + 1)) {
-            let body_start = at + 9;
-            let Some(body_end) = usize::try_from(len)
-                .ok()
-                .and_then(|l| body_start.checked_add(l))
-            else {
-                break;
-            };
-            let Some(body) = rest.get(body_start..body_end) else {
-                break;
-            };
-            match mcap::parse_record(opcode, body) {
-                Ok(r) => found.push(r.into_owned()),
-                Err(_) => break,
-            }
-            at = body_end;
-        }
+        // What is whole at the chunk's start; the cut record and anything after it is lost.
+        let (found, _cut) = chunk_records(rest.get(at..).unwrap_or_default());
         for r in found {
             if self.absorb(r, start).is_err() {
                 break;
             }
         }
+    }
+}
+
+/// The records of an uncompressed chunk's record area, in order, up to the first that is cut
+/// short or malformed; with that one's damage, if any.
+fn chunk_records(area: &[u8]) -> (Vec<mcap::records::Record<'static>>, Option<String>) {
+    let mut found = Vec::new();
+    let mut at = 0usize;
+    while at < area.len() {
+        let (Some(&opcode), Some(len)) = (area.get(at), le_u64(area, at + 1)) else {
+            return (
+                found,
+                Some(format!("a record header cut short at offset {at}")),
+            );
+        };
+        let body_start = at + 9;
+        let Some(body) = usize::try_from(len)
+            .ok()
+            .and_then(|l| body_start.checked_add(l))
+            .and_then(|end| area.get(body_start..end))
+        else {
+            return (
+                found,
+                Some(format!(
+                    "a record of {len} bytes at offset {at}, {} left",
+                    area.len() - body_start.min(area.len())
+                )),
+            );
+        };
+        match parse_record(opcode, body) {
+            Ok(r) => found.push(r.into_owned()),
+            Err(e) => return (found, Some(format!("at offset {at}: {e}"))),
+        }
+        at = body_start + body.len();
+    }
+    (found, None)
+}
+
+/// `mcap::parse_record`, after checking that every length-prefixed string (and a schema's data)
+/// fits in the record: the `mcap` crate allocates the length a string announces before it reads
+/// it, so a corrupt length of 2^32-1 would be a 4 GiB allocation.
+fn parse_record(opcode: u8, body: &[u8]) -> Result<mcap::records::Record<'_>, String> {
+    lengths_fit(opcode, body)?;
+    mcap::parse_record(opcode, body).map_err(|e| e.to_string())
+}
+
+/// The check of [`parse_record`], record by record as the MCAP specification lays them out.
+fn lengths_fit(opcode: u8, body: &[u8]) -> Result<(), String> {
+    use mcap::records::op;
+    let mut w = Walk { body, at: 0 };
+    match opcode {
+        op::HEADER => {
+            w.block("profile")?;
+            w.block("library")?;
+        }
+        op::SCHEMA => {
+            w.skip(2)?;
+            w.block("schema name")?;
+            w.block("schema encoding")?;
+            w.block("schema data")?;
+        }
+        op::CHANNEL => {
+            w.skip(4)?;
+            w.block("topic")?;
+            w.block("message encoding")?;
+            w.string_map("channel metadata")?;
+        }
+        op::CHUNK => {
+            w.skip(28)?;
+            w.block("compression")?;
+        }
+        op::CHUNK_INDEX => {
+            w.skip(32)?;
+            w.block("message index offsets")?;
+            w.skip(8)?;
+            w.block("compression")?;
+        }
+        op::ATTACHMENT => {
+            w.skip(16)?;
+            w.block("attachment name")?;
+            w.block("media type")?;
+        }
+        op::ATTACHMENT_INDEX => {
+            w.skip(40)?;
+            w.block("attachment name")?;
+            w.block("media type")?;
+        }
+        op::METADATA => {
+            w.block("metadata name")?;
+            w.string_map("metadata")?;
+        }
+        op::METADATA_INDEX => {
+            w.skip(16)?;
+            w.block("metadata name")?;
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// A cursor over a record body for [`lengths_fit`].
+struct Walk<'a> {
+    body: &'a [u8],
+    at: usize,
+}
+
+impl Walk<'_> {
+    fn left(&self) -> usize {
+        self.body.len().saturating_sub(self.at)
+    }
+
+    fn skip(&mut self, n: usize) -> Result<(), String> {
+        if n > self.left() {
+            return Err(format!(
+                "the record ends early: {n} bytes wanted at {}, {} left",
+                self.at,
+                self.left()
+            ));
+        }
+        self.at += n;
+        Ok(())
+    }
+
+    /// A `u32` length and that many bytes.
+    fn block(&mut self, what: &str) -> Result<usize, String> {
+        let len = le_u32(self.body, self.at).ok_or_else(|| format!("no length for the {what}"))?;
+        self.at += 4;
+        let len = len as usize;
+        if len > self.left() {
+            return Err(format!(
+                "the {what} claims {len} bytes, {} left in the record",
+                self.left()
+            ));
+        }
+        self.at += len;
+        Ok(len)
+    }
+
+    /// A `u32` byte length, then string pairs filling exactly that many bytes.
+    fn string_map(&mut self, what: &str) -> Result<(), String> {
+        let len = le_u32(self.body, self.at).ok_or_else(|| format!("no length for the {what}"))?;
+        self.at += 4;
+        let end = self.at.saturating_add(len as usize);
+        if end > self.body.len() {
+            return Err(format!(
+                "the {what} claims {len} bytes, {} left in the record",
+                self.left()
+            ));
+        }
+        while self.at < end {
+            self.block(what)?;
+            self.block(what)?;
+        }
+        if self.at != end {
+            return Err(format!("the {what} overruns its {len} bytes"));
+        }
+        Ok(())
     }
 }
 
@@ -601,14 +752,6 @@ fn le_u32(b: &[u8], at: usize) -> Option<u32> {
 fn le_u64(b: &[u8], at: usize) -> Option<u64> {
     let s = b.get(at..at.checked_add(8)?)?;
     Some(u64::from_le_bytes(s.try_into().ok()?))
-}
-
-fn malformed(record: &'static str, offset: u64, e: mcap::McapError) -> Damage {
-    Damage::Malformed {
-        record,
-        offset,
-        detail: e.to_string(),
-    }
 }
 
 impl Iterator for RecordingReader {
@@ -731,6 +874,40 @@ mod tests {
             let n = RecordingReader::open(&q).unwrap().count();
             assert!(n <= 41);
         }
+    }
+
+    /// A string length of 2^32-1 inside a record (a channel's topic, here in a cut chunk, and
+    /// in a whole one with its CRC cleared) is damage reported at once, never a 4 GiB
+    /// allocation (the fuzz target `mcap` found this).
+    #[test]
+    fn a_huge_string_length_is_damage_not_an_allocation() {
+        let p = tmp("huge.mcap");
+        write_file(&p, 5, 1000);
+        let mut bytes = std::fs::read(&p).unwrap();
+        let topic = b"chatter";
+        let pos = bytes.windows(topic.len()).position(|w| w == topic).unwrap();
+        bytes[pos - 4..pos].copy_from_slice(&u32::MAX.to_le_bytes());
+        // Clear the first chunk's CRC (0: not computed) so the reader parses what it holds.
+        let mut at = 8;
+        while bytes[at] != mcap::records::op::CHUNK {
+            at += 9 + le_u64(&bytes, at + 1).unwrap() as usize;
+        }
+        bytes[at + 9 + 24..at + 9 + 28].fill(0);
+        let q = tmp("huge_bad.mcap");
+        std::fs::write(&q, &bytes).unwrap();
+        let results: Vec<_> = RecordingReader::open(&q).unwrap().collect();
+        assert!(results.iter().all(|r| r.is_err()), "{results:?}");
+        let Some(Err(e)) = results.last() else {
+            panic!("no damage reported");
+        };
+        assert!(e.to_string().contains("4294967295"), "{e}");
+        assert_eq!(
+            lengths_fit(
+                mcap::records::op::CHANNEL,
+                &[0, 0, 0, 0, 0xff, 0xff, 0xff, 0xff]
+            ),
+            Err("the topic claims 4294967295 bytes, 0 left in the record".to_string())
+        );
     }
 
     #[test]

@@ -252,6 +252,17 @@ args = ["--role", "${role}"]
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown profile \"nope\""));
 }
 
+/// An include that names a device (it would never end) or a huge file is refused unread, at the
+/// include's line.
+#[test]
+fn an_include_of_a_device_is_refused_unread() {
+    assert_rejected(
+        "include = [\"/dev/zero\"]\n[graph]\nname = \"g\"\n",
+        1,
+        "not a regular file",
+    );
+}
+
 #[test]
 fn errors_in_an_included_file_name_that_file() {
     let ns = unique_namespace("include");
