@@ -251,6 +251,12 @@ pub trait Component {
     /// [`EX_CONFIG`] and the message, before joining, and is not restarted. Put here what a
     /// restart cannot fix; what can come and go (a peer, a network) belongs in `run`.
     fn prepare(config: Self::Config) -> anyhow::Result<Self::Prepared>;
+    /// Work the flags ask for that needs no bus (print the state machine's diagram, check a
+    /// scenario file and list its steps): when this returns `Some`, the component does it after
+    /// [`Component::prepare`] and exits (0, or 1 with the error) without joining the bus.
+    fn without_bus(_prepared: &Self::Prepared) -> Option<anyhow::Result<()>> {
+        None
+    }
     /// Run until `shutdown` resolves (then return `Ok`) or an error ends the component.
     fn run(
         bus: Bus,
@@ -325,6 +331,14 @@ pub fn main<C: Component>() -> ExitCode {
         drop(prepared);
         println!("{name}: ready to start");
         return ExitCode::SUCCESS;
+    }
+    match C::without_bus(&prepared) {
+        None => {}
+        Some(Ok(())) => return ExitCode::SUCCESS,
+        Some(Err(e)) => {
+            eprintln!("{name}: {e:#}");
+            return ExitCode::FAILURE;
+        }
     }
     run(cli.node, interface, move |bus, shutdown| {
         C::run(bus, prepared, shutdown)

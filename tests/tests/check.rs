@@ -447,3 +447,32 @@ fn the_real_profile_without_its_servo_map_is_reported_before_the_launch() {
         "{line}"
     );
 }
+
+/// `loki_world --check` lists a scenario's steps and exits 0 without a bus (no router runs
+/// here); a scenario that does not exist is a configuration error naming it.
+#[test]
+fn a_scenario_is_checked_without_a_bus() {
+    let out = run(
+        &bin("loki_world"),
+        &["--scenario".into(), "still".into(), "--check".into()],
+        Duration::from_secs(30),
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("steps)") && text.contains("  1. "), "{text}");
+    let bad = run(
+        &bin("loki_world"),
+        &[
+            "--scenario".into(),
+            "no_such_scenario".into(),
+            "--check".into(),
+        ],
+        Duration::from_secs(30),
+    );
+    assert_eq!(bad.status.code(), Some(78));
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("no_such_scenario"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+}

@@ -355,12 +355,15 @@ impl interfaces::node::Component for Executive {
 
     fn prepare(config: Config) -> anyhow::Result<(Config, Settings)> {
         let settings = config.load_settings()?;
-        if config.print_diagram || config.print_dot {
-            // A drawing of the machine on stdout, and no bus.
-            print!("{}", diagram(config.game, &settings, config.print_dot)?);
-            std::process::exit(0);
-        }
         Ok((config, settings))
+    }
+
+    /// `--print-diagram`, `--print-dot`: a drawing of the machine on stdout, and no bus.
+    fn without_bus((config, settings): &(Config, Settings)) -> Option<anyhow::Result<()>> {
+        (config.print_diagram || config.print_dot).then(|| {
+            print!("{}", diagram(config.game, settings, config.print_dot)?);
+            Ok(())
+        })
     }
 
     async fn run(bus: Bus, prepared: (Config, Settings), shutdown: Shutdown) -> anyhow::Result<()> {

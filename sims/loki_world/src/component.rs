@@ -46,7 +46,8 @@ impl Component for LokiWorld {
         the robot does. Exits 0 when the scenario completes, 1 at the first expectation not met \
         (naming the step and what was seen instead).";
     type Config = Config;
-    type Prepared = PersonConfig;
+    /// The person, and whether `--check` asked only for the scenario's steps.
+    type Prepared = (PersonConfig, bool);
 
     fn interface(_: &Config) -> Interface {
         Interface::new(Self::NAME)
@@ -59,11 +60,30 @@ impl Component for LokiWorld {
             .calls(&topics::DR_TRANSFORM)
     }
 
-    /// Load and check the scenario. With `--check`, print its steps and exit 0 without joining
-    /// the bus.
-    fn prepare(config: Config) -> anyhow::Result<PersonConfig> {
+    /// Load and check the scenario.
+    fn prepare(config: Config) -> anyhow::Result<(PersonConfig, bool)> {
         let scenario = Scenario::load(&config.scenario)?;
-        if config.check {
+        if !(config.ball_rate_hz.is_finite()
+            && config.ball_rate_hz > 0.0
+            && config.ball_rate_hz <= 1000.0)
+        {
+            anyhow::bail!("--ball-rate-hz must be in (0, 1000]");
+        }
+        let person = PersonConfig {
+            scenario,
+            ball_rate_hz: config.ball_rate_hz,
+            hand_frame: config.hand_frame,
+            camera_frame: config.camera_frame,
+            settle_s: config.settle_s.clamp(0.0, 60.0),
+            seed: config.seed,
+        };
+        Ok((person, config.check))
+    }
+
+    /// `--check`: the scenario's steps on stdout, and no bus.
+    fn without_bus((person, check): &(PersonConfig, bool)) -> Option<anyhow::Result<()>> {
+        check.then(|| {
+            let scenario = &person.scenario;
             println!(
                 "{}: {} ({} steps)",
                 scenario.name,
@@ -73,25 +93,15 @@ impl Component for LokiWorld {
             for (i, s) in scenario.steps.iter().enumerate() {
                 println!("{:3}. {s:?}", i + 1);
             }
-            std::process::exit(0);
-        }
-        if !(config.ball_rate_hz.is_finite()
-            && config.ball_rate_hz > 0.0
-            && config.ball_rate_hz <= 1000.0)
-        {
-            anyhow::bail!("--ball-rate-hz must be in (0, 1000]");
-        }
-        Ok(PersonConfig {
-            scenario,
-            ball_rate_hz: config.ball_rate_hz,
-            hand_frame: config.hand_frame,
-            camera_frame: config.camera_frame,
-            settle_s: config.settle_s.clamp(0.0, 60.0),
-            seed: config.seed,
+            Ok(())
         })
     }
 
-    async fn run(bus: Bus, cfg: PersonConfig, shutdown: Shutdown) -> anyhow::Result<()> {
+    async fn run(
+        bus: Bus,
+        (cfg, _): (PersonConfig, bool),
+        shutdown: Shutdown,
+    ) -> anyhow::Result<()> {
         let name = cfg.scenario.name.clone();
         let o = person::run(bus, cfg, shutdown).await?;
         println!(
