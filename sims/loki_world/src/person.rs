@@ -17,9 +17,10 @@ use audio::signal::{self as pcm, NoiseKind, NoiseRng};
 use audio::synth::{self, Voice};
 use interfaces::msg::body::ReachState;
 use interfaces::msg::dr::TransformRequest;
-use interfaces::msg::speech::{AudioChunk, SpeakingState};
+use interfaces::msg::speech::{AudioChunk, SpeakingEvent, SpeakingState};
 use interfaces::msg::tracking::{BallEventKind, SimBall};
 use interfaces::{Bus, CallError, topics};
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
@@ -49,12 +50,49 @@ pub struct PersonConfig {
 #[derive(Debug, Default)]
 struct Seen {
     said: Vec<(Instant, String)>,
-    /// The robot is speaking (between Started and Finished/Interrupted/...).
-    robot_speaking: bool,
+    /// The robot's sentences queued or being said, by id, with when they will be over at the
+    /// latest (from Queued or Started until Finished, Interrupted, Dropped or Failed): the robot
+    /// has the floor while one is left, including the short gap between two sentences it says
+    /// in a row. The time bound lets a sentence whose end never comes (a speech generator
+    /// killed mid-sentence) go.
+    robot_sentences: BTreeMap<u64, Instant>,
     entered: Vec<(Instant, String)>,
     active: Vec<String>,
     reach: Vec<(Instant, String, ReachState)>,
     ball_events: Vec<(Instant, BallEventKind)>,
+}
+
+/// How long after its audio should have ended a sentence still counts as being said.
+const SENTENCE_SLACK: Duration = Duration::from_secs(1);
+/// How long a queued sentence counts as coming at most.
+const QUEUED_AT_MOST: Duration = Duration::from_secs(15);
+
+impl Seen {
+    /// Whether the robot is speaking, or about to say a sentence it has queued.
+    fn robot_has_the_floor(&self, now: Instant) -> bool {
+        self.robot_sentences.values().any(|&until| until > now)
+    }
+
+    /// What the person makes of the robot's `speech/speaking` event at `now`.
+    fn on_speaking(&mut self, m: &SpeakingEvent, now: Instant) {
+        match m.state {
+            SpeakingState::Started => {
+                self.said.push((now, m.text.to_lowercase()));
+                let lasts = Duration::from_secs_f64(m.duration_s.clamp(0.0, 60.0));
+                self.robot_sentences
+                    .insert(m.id, now + lasts + SENTENCE_SLACK);
+            }
+            SpeakingState::Queued => {
+                self.robot_sentences.insert(m.id, now + QUEUED_AT_MOST);
+            }
+            SpeakingState::Finished
+            | SpeakingState::Interrupted
+            | SpeakingState::Dropped
+            | SpeakingState::Failed => {
+                self.robot_sentences.remove(&m.id);
+            }
+        }
+    }
 }
 
 fn reach_name(s: ReachState) -> &'static str {
@@ -309,7 +347,7 @@ fn move_ball(ball: &Mutex<Ball>, now_s: f64, m: &BallMove) -> f64 {
 const TURN_WAIT_S: f64 = 8.0;
 
 /// Speak `text`, taking turns: first wait (at most [`TURN_WAIT_S`]) for the robot to finish what
-/// it is saying, as people do (and as the dialog expects: it ignores speech heard while the robot
+/// it is saying and what it has queued to say next, as people do (and as the dialog expects: it ignores speech heard while the robot
 /// talks, its own echo guard).
 async fn say(
     speech: &mpsc::Sender<SpeechJob>,
@@ -320,7 +358,7 @@ async fn say(
 ) -> anyhow::Result<()> {
     let turn = Instant::now() + Duration::from_secs_f64(TURN_WAIT_S);
     let mut waited = false;
-    while lock(seen).robot_speaking && Instant::now() < turn {
+    while lock(seen).robot_has_the_floor(Instant::now()) && Instant::now() < turn {
         waited = true;
         tokio::select! {
             _ = tokio::time::sleep(Duration::from_millis(50)) => {}
@@ -398,16 +436,10 @@ async fn spawn_senses(bus: &Bus, seen: Arc<Mutex<Seen>>) -> anyhow::Result<()> {
             tokio::select! {
                 m = speaking.recv() => {
                     let Ok(m) = m else { break };
-                    let mut s = lock(&seen);
-                    match m.state {
-                        SpeakingState::Started => {
-                            println!("person: hears the robot say {:?}", m.text);
-                            s.said.push((Instant::now(), m.text.to_lowercase()));
-                            s.robot_speaking = true;
-                        }
-                        SpeakingState::Queued => {}
-                        _ => s.robot_speaking = false,
+                    if m.state == SpeakingState::Started {
+                        println!("person: hears the robot say {:?}", m.text);
                     }
+                    lock(&seen).on_speaking(&m, Instant::now());
                 }
                 m = transitions.recv() => {
                     let Ok(m) = m else { break };
@@ -611,6 +643,46 @@ pub fn rotate(q: &[f64; 4], v: &[f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn event(id: u64, state: SpeakingState, duration_s: f64) -> SpeakingEvent {
+        SpeakingEvent {
+            id,
+            state,
+            duration_s,
+            text: format!("sentence {id}"),
+            ..SpeakingEvent::default()
+        }
+    }
+
+    /// Two sentences in a row: between the end of the first and the start of the queued second
+    /// the robot still has the floor (a person who spoke there was ignored by the dialog as
+    /// the robot's own echo, and had to repeat herself). A sentence whose end never comes (its
+    /// generator was killed) stops holding the floor once its audio would have ended.
+    #[test]
+    fn the_robot_keeps_the_floor_between_sentences_it_has_queued() {
+        let t0 = Instant::now();
+        let mut seen = Seen::default();
+        assert!(!seen.robot_has_the_floor(t0));
+        seen.on_speaking(&event(3, SpeakingState::Queued, 0.0), t0);
+        seen.on_speaking(&event(3, SpeakingState::Started, 1.6), t0);
+        seen.on_speaking(&event(4, SpeakingState::Queued, 0.0), t0);
+        let t1 = t0 + Duration::from_millis(1600);
+        seen.on_speaking(&event(3, SpeakingState::Finished, 1.6), t1);
+        assert!(
+            seen.robot_has_the_floor(t1),
+            "the queued sentence 4 is next"
+        );
+        seen.on_speaking(&event(4, SpeakingState::Started, 1.25), t1);
+        seen.on_speaking(
+            &event(4, SpeakingState::Finished, 1.25),
+            t1 + Duration::from_millis(1250),
+        );
+        assert!(!seen.robot_has_the_floor(t1 + Duration::from_millis(1250)));
+        // Started and never finished: the floor is free 1 s after its audio's end.
+        seen.on_speaking(&event(5, SpeakingState::Started, 2.0), t1);
+        assert!(seen.robot_has_the_floor(t1 + Duration::from_millis(2900)));
+        assert!(!seen.robot_has_the_floor(t1 + Duration::from_millis(3100)));
+    }
 
     #[test]
     fn a_timing_is_one_json_object_with_its_action() {
