@@ -665,6 +665,11 @@ fn lengths_fit(opcode: u8, body: &[u8]) -> Result<(), String> {
             w.skip(16)?;
             w.block("attachment name")?;
             w.block("media type")?;
+            // The data (u64 length) and its CRC: the `mcap` crate slices them unchecked.
+            let len = le_u64(body, w.at).ok_or("no length for the attachment data")?;
+            w.skip(8)?;
+            w.skip(usize::try_from(len).unwrap_or(usize::MAX))?;
+            w.skip(4)?;
         }
         op::ATTACHMENT_INDEX => {
             w.skip(40)?;
@@ -908,6 +913,28 @@ mod tests {
             ),
             Err("the topic claims 4294967295 bytes, 0 left in the record".to_string())
         );
+    }
+
+    /// An attachment shorter than its own header and CRC (the fuzz target `mcap` found that the
+    /// `mcap` crate slices it and panics) is damage, not a panic.
+    #[test]
+    fn a_short_attachment_is_damage_not_a_panic() {
+        let mut body = vec![0u8; 16];
+        body.extend_from_slice(&1u32.to_le_bytes());
+        body.push(b'a');
+        body.extend_from_slice(&0u32.to_le_bytes());
+        assert!(lengths_fit(mcap::records::op::ATTACHMENT, &body).is_err());
+        body.extend_from_slice(&2u64.to_le_bytes());
+        body.extend_from_slice(b"xy");
+        assert!(lengths_fit(mcap::records::op::ATTACHMENT, &body).is_err(), "no CRC");
+        body.extend_from_slice(&0u32.to_le_bytes());
+        assert_eq!(lengths_fit(mcap::records::op::ATTACHMENT, &body), Ok(()));
+        // The file the fuzzer made, whole.
+        let crash = include_bytes!("../../tests/fuzz/corpus/mcap/regression-short-attachment");
+        let p = tmp("short_attachment.mcap");
+        std::fs::write(&p, crash).unwrap();
+        let results: Vec<_> = RecordingReader::open(&p).unwrap().collect();
+        assert!(results.last().is_some_and(|r| r.is_err()), "{results:?}");
     }
 
     #[test]
