@@ -930,7 +930,7 @@ mod tests {
         body.extend_from_slice(&0u32.to_le_bytes());
         assert_eq!(lengths_fit(mcap::records::op::ATTACHMENT, &body), Ok(()));
         // The file the fuzzer made, whole.
-        let crash = include_bytes!("../../tests/fuzz/corpus/mcap/regression-short-attachment");
+        let crash = include_bytes!("../../tests/fuzz/regressions/mcap/short-attachment");
         let p = tmp("short_attachment.mcap");
         std::fs::write(&p, crash).unwrap();
         let results: Vec<_> = RecordingReader::open(&p).unwrap().collect();

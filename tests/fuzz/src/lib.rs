@@ -10,7 +10,9 @@
 //!   beyond [`MAX_ALLOCATION`].
 //!
 //! Corpora: `corpus/<target>/`, seeded from real packets, files and messages and grown by the
-//! long runs (the files libFuzzer found new coverage with).
+//! long runs (the files libFuzzer found new coverage with; `scripts/fuzz` minimises them after
+//! each run). An input that once crashed a target stays in `regressions/<target>/`, which the
+//! minimiser does not touch, and the short runs replay it too.
 
 use std::io::Write;
 use std::path::PathBuf;

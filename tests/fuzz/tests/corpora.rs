@@ -59,10 +59,19 @@ fn corpus_dir(target: &str) -> PathBuf {
         .join(target)
 }
 
+/// The inputs that once crashed a target (kept apart from the corpus, which `cargo fuzz cmin`
+/// rewrites), replayed like the corpus.
+fn regressions_dir(target: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("regressions")
+        .join(target)
+}
+
 fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
     let dir = corpus_dir(target);
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("no corpus for {target} at {}: {e}", dir.display()))
+        .chain(std::fs::read_dir(regressions_dir(target)).into_iter().flatten())
         .map(|e| e.unwrap().path())
         .filter(|p| p.is_file())
         .collect();
