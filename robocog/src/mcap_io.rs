@@ -926,7 +926,10 @@ mod tests {
         assert!(lengths_fit(mcap::records::op::ATTACHMENT, &body).is_err());
         body.extend_from_slice(&2u64.to_le_bytes());
         body.extend_from_slice(b"xy");
-        assert!(lengths_fit(mcap::records::op::ATTACHMENT, &body).is_err(), "no CRC");
+        assert!(
+            lengths_fit(mcap::records::op::ATTACHMENT, &body).is_err(),
+            "no CRC"
+        );
         body.extend_from_slice(&0u32.to_le_bytes());
         assert_eq!(lengths_fit(mcap::records::op::ATTACHMENT, &body), Ok(()));
         // The file the fuzzer made, whole.
