@@ -71,7 +71,11 @@ fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
     let dir = corpus_dir(target);
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("no corpus for {target} at {}: {e}", dir.display()))
-        .chain(std::fs::read_dir(regressions_dir(target)).into_iter().flatten())
+        .chain(
+            std::fs::read_dir(regressions_dir(target))
+                .into_iter()
+                .flatten(),
+        )
         .map(|e| e.unwrap().path())
         .filter(|p| p.is_file())
         .collect();
