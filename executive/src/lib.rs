@@ -4,6 +4,7 @@
 //! - [`touch`]: Loki's touch-the-ball game (seed 001 §V) on the engine, with its state tree.
 //! - [`settings`]: the settings file.
 //! - [`propose`]: structural DR changes checked against the game.
+//! - [`state_file`]: a game's resume record in the state folder.
 //! - [`component`]: the `executive` process on the bus.
 
 pub mod coach;
@@ -11,4 +12,5 @@ pub mod component;
 pub mod engine;
 pub mod propose;
 pub mod settings;
+pub mod state_file;
 pub mod touch;

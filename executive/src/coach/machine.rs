@@ -19,6 +19,9 @@
 //! guarded transitions, so the diagram shows each way in and out. Requests are the events
 //! `request:<body or head>`, decided by [`super::rules::decide`] in whatever state is active (the
 //! rules know the situation too). Timers: `still_down` and `still_lost` repeat the alarm once.
+//!
+//! [`resume`]: the record a restarted Executive takes the game up from; commands go out only
+//! while a bridge listens ([`CoachGame::bridge`]), and are held meanwhile.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -61,6 +64,8 @@ pub mod say {
     pub const UNPENALISED: &str = "My penalty is over.";
     pub const LINK_BACK: &str = "The robot is responding again.";
     pub const PLAY: &str = "We are playing.";
+    /// The one line a restarted Executive says when it takes a game up again.
+    pub const BACK: &str = "Sorry, I'm back.";
 }
 
 /// The coach settings: the `[coach]` table of the Executive's settings file (every key
@@ -134,6 +139,18 @@ pub struct CoachCtx {
     last_answer: String,
     now_s: f64,
     outputs: Vec<Output>,
+    /// While set, the machine's own announcements ([`Act::Say`]) are logged, not said: a
+    /// restarted Executive entering the mode it was in has said them already.
+    quiet: bool,
+    /// Whether a bridge subscribes to `nao/command` (see [`RulesConfig::bridges`]).
+    bridge_up: bool,
+    /// What the robot should have but may not: commands held while no bridge listens, or
+    /// published and not yet confirmed ([`CoachGame::delivered`]), merged as the robot merges
+    /// them (a body replaces body and target, a head the head).
+    undelivered: Option<NaoCommand>,
+    /// What was published last (merged within [`RESEND_WINDOW_S`]) and when: a bridge that
+    /// went away just after may have died with it.
+    published: Option<(NaoCommand, f64)>,
 }
 
 impl CoachCtx {
@@ -145,6 +162,29 @@ impl CoachCtx {
         self.log("said", text.clone());
         self.last_answer = text.clone();
         self.outputs.push(Output::Say { text, priority });
+    }
+
+    /// Sends `c` to the robot, or holds it while no bridge listens. Either way it is kept as
+    /// undelivered until the process says it went out ([`CoachGame::delivered`]).
+    fn command(&mut self, c: NaoCommand) {
+        self.undelivered = Some(merge(self.undelivered.take(), &c));
+        if self.bridge_up {
+            let recent = self
+                .published
+                .take()
+                .filter(|(_, t)| self.now_s - t <= RESEND_WINDOW_S)
+                .map(|(p, _)| p);
+            self.published = Some((merge(recent, &c), self.now_s));
+            self.outputs.push(Output::Command(c));
+        } else {
+            self.log(
+                "held",
+                format!(
+                    "{:?} head {:?}: no bridge listens on nao/command, sent when one does",
+                    c.body, c.head
+                ),
+            );
+        }
     }
 
     /// Decides `ask`, says the answer, then sends the command (or keeps the request).
@@ -176,7 +216,7 @@ impl CoachCtx {
                     // A new body command replaces whatever was kept.
                     self.memory.pending = None;
                 }
-                self.outputs.push(Output::Command(command.clone()));
+                self.command(command.clone());
             }
             Verdict::Refuse { reason, keep, .. } => {
                 self.say(text, Priority::High);
@@ -242,6 +282,12 @@ impl CoachCtx {
 impl Context<Act, Input> for CoachCtx {
     fn run(&mut self, action: &Act, event: &Event<Input>) {
         match *action {
+            Act::Say(text, _) if self.quiet => {
+                self.log(
+                    "resumed",
+                    format!("said before the restart, not again: {text}"),
+                );
+            }
             Act::Say(text, priority) => self.say(text.to_string(), priority),
             Act::Decide => {
                 if let Input::Request(ask) = &event.payload {
@@ -354,7 +400,8 @@ impl Outcome {
             })
             .collect()
     }
-    fn extend(&mut self, other: Outcome) {
+    /// Appends `other`'s steps and outputs.
+    pub fn extend(&mut self, other: Outcome) {
         self.steps.extend(other.steps);
         self.outputs.extend(other.outputs);
     }
@@ -366,6 +413,11 @@ impl Outcome {
 pub struct CoachGame {
     machine: Machine<CoachCtx, Input, Act>,
     ctx: CoachCtx,
+    /// After a resume: the mode the old process was in, entered again without its announcement.
+    resumed_mode: Option<&'static str>,
+    /// After a resume with the link lost: a fresh packet of our robot in a world model says it
+    /// is back (its return was announced on `nao/link` to nobody).
+    await_link: bool,
 }
 
 impl CoachGame {
@@ -385,7 +437,13 @@ impl CoachGame {
                 last_answer: String::new(),
                 now_s: 0.0,
                 outputs: Vec::new(),
+                quiet: false,
+                bridge_up: true,
+                undelivered: None,
+                published: None,
             },
+            resumed_mode: None,
+            await_link: false,
         })
     }
 
@@ -475,12 +533,70 @@ impl CoachGame {
     }
 
     /// Sends a situation event when the situation now routes elsewhere than the active mode.
+    /// After a resume, the mode the old process was in is entered without its announcement.
     fn reroute(&mut self, cause: &str, now: Duration) -> Outcome {
         let want = route(&self.ctx.situation, &self.ctx.settings);
-        if self.machine.is_active(want) {
-            return self.advance(now);
+        if self.ctx.situation.game.is_some() && !self.machine.is_active(want) {
+            // The situation is known: whatever the first move is, later ones are news.
+            self.ctx.quiet = self.resumed_mode.take() == Some(want);
         }
-        self.send(cause, Input::None, now)
+        let out = if self.machine.is_active(want) {
+            self.advance(now)
+        } else {
+            self.send(cause, Input::None, now)
+        };
+        self.ctx.quiet = false;
+        out
+    }
+
+    /// Whether a bridge listens on `nao/command` (the process follows its subscribers).
+    /// Taken as listening until told otherwise.
+    pub fn bridge_listening(&self) -> bool {
+        self.ctx.bridge_up
+    }
+
+    /// Whether a bridge listens on `nao/command` now. When one does, what the robot may not
+    /// have ([`CoachGame::undelivered`]) is sent.
+    pub fn bridge(&mut self, listening: bool, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let was = std::mem::replace(&mut self.ctx.bridge_up, listening);
+        if was && !listening {
+            self.ctx.log(
+                "anomaly",
+                "no bridge listens on nao/command (restarting?): commands are held".into(),
+            );
+            // What went out just before may have gone with the bridge: sent again.
+            if let Some((c, t)) = self.ctx.published.take()
+                && now.as_secs_f64() - t <= RESEND_WINDOW_S
+            {
+                self.ctx.undelivered = Some(match self.ctx.undelivered.take() {
+                    Some(held) => merge(Some(c), &held),
+                    None => c,
+                });
+            }
+        }
+        if listening && let Some(c) = self.ctx.undelivered.clone() {
+            self.ctx.log(
+                "sent",
+                format!(
+                    "{:?} head {:?} target ({:.0}, {:.0}) mm, held until a bridge listened",
+                    c.body, c.head, c.target.x_mm, c.target.y_mm
+                ),
+            );
+            self.ctx.outputs.push(Output::Command(c));
+        }
+        out.outputs.append(&mut self.ctx.outputs);
+        out
+    }
+
+    /// The commands of the outcomes so far went out on the bus (to a listening bridge).
+    pub fn delivered(&mut self) {
+        self.ctx.undelivered = None;
+    }
+
+    /// Commands the robot may not have: held, or sent and not confirmed by [`Self::delivered`].
+    pub fn undelivered(&self) -> Option<&NaoCommand> {
+        self.ctx.undelivered.as_ref()
     }
 
     /// A request made from the panel (`coach/request`). A GoToPosition target is remembered as
@@ -547,12 +663,31 @@ impl CoachGame {
     }
 
     /// A world model (`nao/world_model`): memory, and `robot:fell` / `robot:up`.
+    /// After a resume with the link lost, one with a fresh packet of our robot (at most
+    /// [`LINK_FRESH_S`] old) says the link is back: its return may have been announced on
+    /// `nao/link` while no Executive ran.
     pub fn world_model(&mut self, w: &NaoWorldModel, now: Duration) -> Outcome {
         let c = (*self.ctx.settings).clone();
         let was = self.ctx.situation.fallen(&c);
         self.ctx.memory.observe(w, now.as_secs_f64(), &c);
         self.ctx.situation.world = Some(w.clone());
         let is = self.ctx.situation.fallen(&c);
+        if self.await_link
+            && w.robots
+                .iter()
+                .any(|r| r.player_number == c.controlled_player && r.age_s <= LINK_FRESH_S)
+        {
+            self.await_link = false;
+            self.ctx.log(
+                "anomaly",
+                "the robot's link, lost before the restart, is up again".into(),
+            );
+            self.ctx.situation.link_up = true;
+            let mut out = Outcome::default();
+            out.outputs.append(&mut self.ctx.outputs);
+            out.extend(self.reroute("link:restored", now));
+            return out;
+        }
         match (was, is) {
             (false, true) => self.reroute("robot:fell", now),
             (true, false) => self.reroute("robot:up", now),
@@ -591,12 +726,39 @@ impl CoachGame {
             return self.advance(now);
         }
         let up = e.change != LinkChange::RobotNotResponding;
+        self.await_link = false;
         if up == self.ctx.situation.link_up {
             return self.advance(now);
         }
         self.ctx.situation.link_up = up;
         self.reroute(if up { "link:restored" } else { "link:lost" }, now)
     }
+}
+
+/// A robot whose last packet is at most this old (s) has its link up (the bridge's default
+/// time-out).
+pub const LINK_FRESH_S: f64 = 1.0;
+
+/// A bridge that goes away this soon (s) after a command was published may not have passed it
+/// on (its going is seen a few milliseconds late): the command is sent again to the next one.
+pub const RESEND_WINDOW_S: f64 = 0.25;
+
+/// `c` applied after `held`, as the robot applies commands: a body replaces the body and the
+/// target, a head the head; the strategy is always replaced.
+fn merge(held: Option<NaoCommand>, c: &NaoCommand) -> NaoCommand {
+    let Some(mut h) = held else {
+        return c.clone();
+    };
+    if c.body != NaoBody::Keep {
+        h.body = c.body;
+        h.target = c.target;
+    }
+    if c.head != interfaces::msg::nao::NaoHead::Keep {
+        h.head = c.head;
+    }
+    h.strategy = c.strategy;
+    h.source = c.source.clone();
+    h
 }
 
 /// `GoToBallAndDribble` -> `go_to_ball_and_dribble`.
@@ -614,6 +776,8 @@ fn snake(s: &str) -> String {
     }
     out
 }
+
+pub mod resume;
 
 #[cfg(test)]
 mod tests;

@@ -15,6 +15,15 @@
 //! `nao_bridge`), `speech/say` (every answer, before the command is sent), `executive/transitions`
 //! (machine `coach`), `executive/log`, `coach/status` (memory and last-seen times, on every
 //! change and once a second).
+//!
+//! # Restarts
+//!
+//! With a state folder (`ROBOCOG_STATE_DIR`, from the launcher) the game's record
+//! ([`machine::resume::Resume`]) is kept in `<state dir>/coach.json` after every input that
+//! changes it, and before a command goes out (so one the process dies sending is sent again); a
+//! restarted Executive takes the game up from it ([`CoachGame::resume`]). Commands go out only
+//! while a bridge ([`CoachSettings`]' `bridges`) subscribes to `nao/command`; meanwhile they are
+//! held, and sent when one does.
 
 pub mod machine;
 pub mod rules;
@@ -23,12 +32,16 @@ pub use machine::{CoachGame, CoachSettings, MACHINE, Outcome, Output};
 
 use std::time::Duration;
 
+use std::path::Path;
+
+use interfaces::liveliness::Readers;
 use interfaces::msg::executive::{GameLog, StateTransition};
 use interfaces::msg::speech::SayRequest;
 use interfaces::node::Interface;
 use interfaces::{Bus, Moment, Shutdown, topics};
 
 use crate::component::sleep_until;
+use crate::state_file::StateFile;
 
 /// Adds the coach's topics to the Executive's interface.
 pub fn interface(i: Interface) -> Interface {
@@ -44,20 +57,34 @@ pub fn interface(i: Interface) -> Interface {
         .publishes(&topics::COACH_STATUS)
 }
 
-/// Runs the coach machine on the bus until shutdown. Time is the bus clock (system or virtual).
-pub async fn run(bus: Bus, settings: CoachSettings, shutdown: Shutdown) -> anyhow::Result<()> {
-    run_observed(bus, settings, shutdown, |_| {}).await
+/// Runs the coach machine on the bus until shutdown, its record kept in `state_dir` (none: not
+/// kept). Time is the bus clock (system or virtual).
+pub async fn run(
+    bus: Bus,
+    settings: CoachSettings,
+    state_dir: Option<&Path>,
+    shutdown: Shutdown,
+) -> anyhow::Result<()> {
+    run_observed(bus, settings, state_dir, shutdown, |_| {}).await
 }
+
+/// How long a starting Executive waits for a bridge's subscription to show before it holds its
+/// commands (the bridge starts first; its token comes within milliseconds).
+const BRIDGE_WAIT: Duration = Duration::from_secs(2);
 
 /// [`run`], calling `observe` with the game after every input it handled (for the
 /// `executive/configuration` service: `game.machine()` has the active states and the step count).
 pub async fn run_observed(
     bus: Bus,
     settings: CoachSettings,
+    state_dir: Option<&Path>,
     mut shutdown: Shutdown,
     mut observe: impl FnMut(&CoachGame) + Send,
 ) -> anyhow::Result<()> {
+    let bridges = settings.bridges.clone();
     let mut game = CoachGame::new(settings)?;
+    let mut readers = Readers::watch(&bus, &topics::NAO_COMMAND).await?;
+    let listening = |r: &Readers| bridges.is_empty() || r.any_of(&bridges);
     let commands = bus.subscriber(&topics::GAME_COMMAND).await?;
     let requests = bus.subscriber(&topics::COACH_REQUEST).await?;
     let worlds = bus.subscriber(&topics::NAO_WORLD_MODEL).await?;
@@ -86,9 +113,24 @@ pub async fn run_observed(
         "coach: machine `{MACHINE}` with states {:?}",
         game.machine().definition().state_paths()
     );
-    let o = game.start(now());
-    out.emit(o).await?;
+    let _ = tokio::time::timeout(BRIDGE_WAIT, async {
+        while !listening(&readers) {
+            readers.changed().await;
+        }
+    })
+    .await;
+    let mut kept = StateFile::new(state_dir, "coach.json");
+    let mut o = match kept.load() {
+        Some(record) => game.resume(&record, now()),
+        None => game.start(now()),
+    };
+    o.extend(game.bridge(listening(&readers), now()));
     observe(&game);
+    kept.save(Some(game.resume_record()), &out.counters);
+    if out.emit(o).await? {
+        game.delivered();
+    }
+    kept.save(Some(game.resume_record()), &out.counters);
     let mut status_tick = clock.interval(Duration::from_secs(1));
     let mut last_status = None;
     loop {
@@ -101,13 +143,20 @@ pub async fn run_observed(
             w = worlds.recv() => (game.world_model(&w?, now()), false),
             g = states.recv() => (game.game_state(&g?, now()), false),
             l = links.recv() => (game.link(&l?, now()), true),
+            _ = readers.changed() => (game.bridge(listening(&readers), now()), true),
             _ = sleep_until(&clock, deadline) => (game.advance(now()), false),
             _ = status_tick.tick() => (Outcome::default(), true),
         };
         let stepped = outcome.steps.iter().any(|s| !s.ignored) || !outcome.outputs.is_empty();
-        out.emit(outcome).await?;
+        // The configuration is current before anyone hears of the step.
         if stepped {
             observe(&game);
+        }
+        // Kept before the commands go out (with them as undelivered), and again once they did.
+        kept.save(Some(game.resume_record()), &out.counters);
+        if out.emit(outcome).await? {
+            game.delivered();
+            kept.save(Some(game.resume_record()), &out.counters);
         }
         let mut st = game.status(now());
         // Publish on change (ages aside) and on the tick.
@@ -136,8 +185,9 @@ struct Publishers {
 
 impl Publishers {
     /// Publishes an outcome: the steps first, then the outputs in order (so an answer is on
-    /// `speech/say` before its command is on `nao/command`).
-    async fn emit(&mut self, o: Outcome) -> anyhow::Result<()> {
+    /// `speech/say` before its command is on `nao/command`). True when a command went out.
+    async fn emit(&mut self, o: Outcome) -> anyhow::Result<bool> {
+        let mut commanded = false;
         for s in o.steps.iter().filter(|s| !s.ignored) {
             self.transitions
                 .publish(&mut crate::component::transition_msg(MACHINE, s))
@@ -166,6 +216,7 @@ impl Publishers {
                     );
                     self.counters.incr("commands_sent");
                     self.nao.publish(&mut c).await?;
+                    commanded = true;
                 }
                 Output::Log(l) => {
                     if l.kind == "refused" || l.kind == "anomaly" {
@@ -183,6 +234,6 @@ impl Publishers {
                 }
             }
         }
-        Ok(())
+        Ok(commanded)
     }
 }

@@ -27,7 +27,9 @@
 //!
 //! # `--game coach`
 //!
-//! The Nao coach machine ([`crate::coach`]), with the same configuration and propose services.
+//! The Nao coach machine ([`crate::coach`]), with the same configuration and propose services;
+//! with a state folder it keeps its record there (`coach.json`) and a restarted process takes
+//! the game up from it.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -80,7 +82,7 @@ pub struct Config {
     pub exit_when_finished: bool,
     /// Keep the game's state here after every step and take the game up from it at start, so a
     /// restarted Executive goes on where it was (under `robocog launch`: the component's state
-    /// folder, ROBOCOG_STATE_DIR). The touch game only.
+    /// folder, ROBOCOG_STATE_DIR): `touch.json` or `coach.json`.
     #[arg(long, env = "ROBOCOG_STATE_DIR")]
     pub state_dir: Option<PathBuf>,
 }
@@ -295,7 +297,8 @@ pub async fn run(
             }));
             let _services = serve(&bus, snapshot.clone(), settings.propose.clone()).await?;
             // The live configuration after every input the machine handled.
-            crate::coach::run_observed(bus, settings.coach, shutdown, move |game| {
+            let state_dir = config.state_dir.as_deref();
+            crate::coach::run_observed(bus, settings.coach, state_dir, shutdown, move |game| {
                 let m = game.machine();
                 *lock(&snapshot) = Snapshot {
                     machine: crate::coach::MACHINE.into(),

@@ -3,6 +3,7 @@
 //! with retries) out; the tracker and camera watchdogs.
 
 use super::*;
+use crate::state_file::StateFile;
 
 /// A finished home request, back to the main loop for the game log.
 pub(super) struct HomeResult {
@@ -268,93 +269,6 @@ impl TouchOut {
     }
 }
 
-/// The touch game's resume record on disk (`<state dir>/touch.json`), rewritten (atomically)
-/// whenever it changes and removed once the game is over.
-pub(super) struct ResumeFile {
-    path: Option<std::path::PathBuf>,
-    last: Option<touch::resume::Resume>,
-    warned: bool,
-}
-
-impl ResumeFile {
-    pub(super) fn new(dir: Option<&std::path::Path>) -> ResumeFile {
-        ResumeFile {
-            path: dir.map(|d| d.join("touch.json")),
-            last: None,
-            warned: false,
-        }
-    }
-
-    /// The record an earlier process left, if any and usable (a bad one is logged and ignored).
-    pub(super) fn load(&mut self) -> Option<touch::resume::Resume> {
-        let path = self.path.as_ref()?;
-        let text = match std::fs::read_to_string(path) {
-            Ok(t) => t,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
-            Err(e) => {
-                tracing::warn!(
-                    "cannot read the game's state {}: {e}; starting afresh",
-                    path.display()
-                );
-                return None;
-            }
-        };
-        match touch::resume::Resume::from_json(&text) {
-            Ok(r) => {
-                tracing::info!(
-                    "found the game's state in {}: {}",
-                    path.display(),
-                    text.trim()
-                );
-                self.last = Some(r.clone());
-                Some(r)
-            }
-            Err(e) => {
-                tracing::warn!(
-                    "the game's state {} is unusable ({e}); starting afresh",
-                    path.display()
-                );
-                None
-            }
-        }
-    }
-
-    /// Keeps `record` (`None`: the game is over, nothing to take up).
-    pub(super) fn save(&mut self, record: Option<touch::resume::Resume>, bus: &Bus) {
-        let Some(path) = &self.path else { return };
-        if record == self.last {
-            return;
-        }
-        let result = match &record {
-            Some(r) => (|| {
-                if let Some(dir) = path.parent() {
-                    std::fs::create_dir_all(dir)?;
-                }
-                let tmp = path.with_extension("json.tmp");
-                std::fs::write(&tmp, r.to_json())?;
-                std::fs::rename(&tmp, path)
-            })(),
-            None => match std::fs::remove_file(path) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
-                _ => Ok(()),
-            },
-        };
-        match result {
-            Ok(()) => self.last = record,
-            Err(e) => {
-                bus.counters().incr("state_write_errors");
-                if !self.warned {
-                    self.warned = true;
-                    tracing::warn!(
-                        "cannot keep the game's state in {}: {e} (a restart would start afresh)",
-                        path.display()
-                    );
-                }
-            }
-        }
-    }
-}
-
 pub(super) fn snapshot_of(game: &TouchGame, mermaid: &str) -> Snapshot {
     let m = game.machine();
     Snapshot {
@@ -410,14 +324,15 @@ pub(super) async fn run_touch(
         _ = shutdown.wait() => return Ok(()),
         _ = clock.started() => {}
     }
-    let mut kept = ResumeFile::new(config.state_dir.as_deref());
+    // The resume record (`<state dir>/touch.json`), removed once the game is over.
+    let mut kept = StateFile::new(config.state_dir.as_deref(), "touch.json");
     let o = match kept.load() {
         Some(record) => game.resume(&record, bus_now(&bus)),
         None => game.start(bus_now(&bus)),
     };
-    out.emit(o).await?;
-    kept.save(game.resume_record(), &bus);
     *lock(&snapshot) = snapshot_of(&game, &mermaid);
+    out.emit(o).await?;
+    kept.save(game.resume_record(), bus.counters());
     let mut watch = TrackerWatch::default();
     loop {
         // Wake on the clock for the machine's next timer, or the tracker watchdog's.
@@ -460,6 +375,7 @@ pub(super) async fn run_touch(
                             ..BallEvent::default()
                         };
                         let o = game.ball_event(&lost, bus_now(&bus));
+                        *lock(&snapshot) = snapshot_of(&game, &mermaid);
                         out.emit(o).await?;
                     }
                 }
@@ -502,6 +418,8 @@ pub(super) async fn run_touch(
             }
             _ = sleep_until(&clock, deadline) => game.advance(bus_now(&bus)),
         };
+        // The configuration is current before anyone hears of the step.
+        *lock(&snapshot) = snapshot_of(&game, &mermaid);
         out.emit(outcome).await?;
         // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
         // stopped): the ball is lost, said so, and searched for again once it is back.
@@ -520,10 +438,10 @@ pub(super) async fn run_touch(
                 ..BallEvent::default()
             };
             let o = game.ball_event(&lost, bus_now(&bus));
+            *lock(&snapshot) = snapshot_of(&game, &mermaid);
             out.emit(o).await?;
         }
-        kept.save(game.resume_record(), &bus);
-        *lock(&snapshot) = snapshot_of(&game, &mermaid);
+        kept.save(game.resume_record(), bus.counters());
         if out.finished && config.exit_when_finished {
             // Let the last messages and the rest postures go out (on the wall clock: this waits
             // for the bus, and a replay's clock may never move again).

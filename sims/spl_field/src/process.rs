@@ -193,6 +193,10 @@ pub struct Flags {
     /// Whether the two opponents stand still in PLAYING (obstacles only; scripted scenarios).
     #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
     pub passive_opponents: bool,
+    /// Whether the autonomous teammate stands still in PLAYING (scripted scenarios that must
+    /// not end with its goal).
+    #[arg(long, default_value_t = false, action = clap::ArgAction::Set)]
+    pub passive_teammate: bool,
     /// Penalise the controlled robot this many simulated seconds into PLAYING (scripted
     /// scenarios): the GameController reports it, the robot stands out of play.
     #[arg(long)]
@@ -243,6 +247,9 @@ impl interfaces::node::Component for SplFieldComponent {
         sim.penalty_s = config.penalty_s.max(0.0);
         if config.passive_opponents {
             sim.passive_robots = vec![RobotId::KEEPER, RobotId::DEFENDER];
+        }
+        if config.passive_teammate {
+            sim.passive_robots.push(RobotId::AUTONOMOUS);
         }
         let net = NetConfig {
             operator: config.operator,

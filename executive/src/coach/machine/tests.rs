@@ -355,3 +355,329 @@ fn status_shows_memory_and_last_seen_times() {
     assert_eq!(s.obstacle_last_seen_s, -1.0);
     assert!(s.link_up && !s.fallen && !s.penalised && s.game_known);
 }
+
+// ----- restarts ---------------------------------------------------------------------------
+
+/// A new game taken up from `g`'s record, as a restarted process does (through the JSON on
+/// disk), and told at `now` that the bridge listens.
+fn restarted(g: &CoachGame, now: Duration) -> (CoachGame, Outcome) {
+    let record = resume::Resume::from_json(&g.resume_record().to_json()).unwrap();
+    assert_eq!(record, g.resume_record());
+    let mut h = CoachGame::new(CoachSettings::default()).unwrap();
+    let mut o = h.resume(&record, now);
+    assert_eq!(o.steps[0].active, [state::WAITING], "a fresh machine");
+    o.extend(h.bridge(true, now));
+    h.delivered();
+    (h, o)
+}
+
+fn penalised() -> GameState {
+    let mut g = game(GameState::PLAYING);
+    g.our_team.players[1].penalty = 4;
+    g
+}
+
+fn logged(o: &Outcome, kind: &str) -> Vec<String> {
+    o.outputs
+        .iter()
+        .filter_map(|x| match x {
+            Output::Log(l) if l.kind == kind => Some(l.text.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_restarted_coach_keeps_the_command_under_way_and_does_not_send_it_again() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    let r = g.resume_record();
+    assert_eq!(r.mode, state::PLAYING);
+    assert_eq!(r.last.as_ref().unwrap().command.body, NaoBody::GoToPosition);
+    assert!(!r.last.as_ref().unwrap().done);
+    assert_eq!(r.undelivered.as_ref().unwrap().body, NaoBody::GoToPosition);
+    g.delivered();
+    assert_eq!(g.resume_record().undelivered, None);
+
+    let (mut h, o) = restarted(&g, t(100.0));
+    assert_eq!(o.said(), [say::BACK], "one line about the restart");
+    assert!(o.commands().is_empty(), "the robot has it: {o:?}");
+    let line = &logged(&o, "resumed")[0];
+    assert!(
+        line.contains("coach/playing") && line.contains("GoToPosition (under way)"),
+        "{line}"
+    );
+    h.world_model(&world(false, true), t(100.1));
+    let o = h.game_state(&game(GameState::PLAYING), t(100.2));
+    assert_eq!(o.steps[0].active, [state::PLAYING]);
+    assert!(o.said().is_empty() && o.commands().is_empty(), "{o:?}");
+    // It knows what the robot does: the status shows it, and it is done when the robot is there.
+    let s = h.status(t(100.3));
+    assert!(s.has_last && !s.last_done);
+    assert_eq!(s.last_command.target, FieldPoint::new(-3000.0, 2000.0));
+    let mut there = world(false, true);
+    there.robots[0].pose.x_mm = -2900.0;
+    there.robots[0].pose.y_mm = 1950.0;
+    h.world_model(&there, t(110.0));
+    assert!(h.status(t(110.0)).last_done);
+    // After a fall it resumes the command it took up (done: not sent again).
+    let mut down = there.clone();
+    down.robots[0].fallen = true;
+    assert_eq!(h.world_model(&down, t(111.0)).said(), [say::FELL]);
+    let o = h.world_model(&there, t(115.0));
+    assert!(o.commands().is_empty(), "{o:?}");
+    // A new command goes out at once.
+    let o = h.command(&voice(Command::LookLeft), t(116.0));
+    assert_eq!(
+        o.commands()[0].head,
+        interfaces::msg::nao::NaoHead::LookLeft
+    );
+}
+
+#[test]
+fn a_request_kept_in_set_is_done_when_playing_starts_after_a_restart() {
+    let mut g = started();
+    g.game_state(&game(GameState::SET), t(1.0));
+    let o = g.command(&voice(Command::AskForBall), t(1.5));
+    assert_eq!(
+        o.said(),
+        ["I cannot ask for the ball now: the game is in SET. I will do it when we play."]
+    );
+    let r = g.resume_record();
+    assert_eq!(r.mode, state::WAITING);
+    assert_eq!(r.pending.as_ref().unwrap().body, NaoBody::AskForTheBall);
+
+    let (mut h, o) = restarted(&g, t(50.0));
+    assert_eq!(o.said(), [say::BACK]);
+    assert!(o.commands().is_empty());
+    let o = h.game_state(&game(GameState::SET), t(50.5));
+    assert!(o.said().is_empty() && o.commands().is_empty(), "{o:?}");
+    assert!(h.status(t(50.5)).has_pending);
+    let o = h.game_state(&game(GameState::PLAYING), t(52.0));
+    assert_eq!(o.steps[0].entered, [state::PLAYING]);
+    assert_eq!(
+        o.said(),
+        ["We are playing. Asking my teammate for the ball."]
+    );
+    assert_eq!(o.commands()[0].body, NaoBody::AskForTheBall);
+    assert!(!h.status(t(52.0)).has_pending);
+}
+
+#[test]
+fn a_request_kept_in_set_is_done_when_playing_started_during_the_restart() {
+    let mut g = started();
+    g.game_state(&game(GameState::SET), t(1.0));
+    g.command(&voice(Command::AskForBall), t(1.5));
+    let (mut h, _) = restarted(&g, t(50.0));
+    let o = h.game_state(&game(GameState::PLAYING), t(50.5));
+    assert_eq!(
+        o.said(),
+        ["We are playing. Asking my teammate for the ball."]
+    );
+    assert_eq!(o.commands()[0].body, NaoBody::AskForTheBall);
+}
+
+#[test]
+fn a_restarted_coach_while_penalised_does_not_say_it_again_and_resumes_after() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    g.delivered();
+    assert_eq!(g.game_state(&penalised(), t(2.0)).said(), [say::PENALISED]);
+    let o = g.command(&voice(Command::SearchBall), t(3.0));
+    assert_eq!(
+        o.said(),
+        ["I cannot search for the ball now: I am penalised. I will do it when I am back."]
+    );
+    let r = g.resume_record();
+    assert_eq!(r.mode, state::PENALISED);
+    assert_eq!(r.interrupted, Some(resume::Interruption::Penalised));
+
+    let (mut h, o) = restarted(&g, t(20.0));
+    assert_eq!(o.said(), [say::BACK]);
+    h.world_model(&world(false, true), t(20.1));
+    let o = h.game_state(&penalised(), t(20.2));
+    assert_eq!(o.steps[0].entered, [state::PENALISED]);
+    assert!(o.said().is_empty(), "said again: {:?}", o.said());
+    assert!(logged(&o, "resumed")[0].contains(say::PENALISED));
+    // Still penalised: a motion command is refused and kept (the latest replaces it).
+    let o = h.command(&voice(Command::Turn), t(21.0));
+    assert!(o.said()[0].contains("I am penalised"), "{:?}", o.said());
+    assert!(o.commands().is_empty());
+    let o = h.game_state(&game(GameState::PLAYING), t(40.0));
+    assert_eq!(o.said(), ["My penalty is over. Turning."]);
+    assert_eq!(o.commands()[0].body, NaoBody::Turn);
+    // A later penalty is news again.
+    assert_eq!(h.game_state(&penalised(), t(50.0)).said(), [say::PENALISED]);
+}
+
+#[test]
+fn a_penalty_over_during_the_restart_resumes_with_the_kept_request() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    g.game_state(&penalised(), t(2.0));
+    g.command(&voice(Command::SearchBall), t(3.0));
+    let (mut h, _) = restarted(&g, t(20.0));
+    let o = h.game_state(&game(GameState::PLAYING), t(20.2));
+    assert_eq!(o.said(), ["My penalty is over. Searching for the ball."]);
+    assert_eq!(o.commands()[0].body, NaoBody::SearchTheBall);
+}
+
+#[test]
+fn a_command_under_way_after_a_penalty_resumes_when_it_ends_after_a_restart() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    g.delivered();
+    g.game_state(&penalised(), t(2.0));
+    let (mut h, _) = restarted(&g, t(20.0));
+    assert!(h.game_state(&penalised(), t(20.2)).said().is_empty());
+    let o = h.game_state(&game(GameState::PLAYING), t(30.0));
+    assert_eq!(
+        o.said(),
+        ["My penalty is over. Resuming. Going to the position."]
+    );
+    assert_eq!(o.commands()[0].target, FieldPoint::new(-3000.0, 2000.0));
+}
+
+#[test]
+fn commands_are_held_while_no_bridge_listens_and_sent_once_one_does() {
+    let mut g = playing();
+    assert!(g.bridge_listening());
+    let o = g.bridge(false, t(1.0));
+    assert!(logged(&o, "anomaly")[0].contains("no bridge listens"));
+    let o = g.request(&go_to(-3000.0, 2000.0), t(1.5));
+    assert_eq!(o.said(), ["Going to the position."], "answered at once");
+    assert!(o.commands().is_empty());
+    assert!(logged(&o, "held")[0].contains("GoToPosition"));
+    let o = g.command(&voice(Command::LookLeft), t(1.6));
+    assert!(o.commands().is_empty());
+    // What the robot gets when the bridge is back: both, as one command.
+    let o = g.bridge(true, t(3.0));
+    let c = o.commands();
+    assert_eq!(c.len(), 1, "{o:?}");
+    assert_eq!(
+        (c[0].body, c[0].head, c[0].target),
+        (
+            NaoBody::GoToPosition,
+            interfaces::msg::nao::NaoHead::LookLeft,
+            FieldPoint::new(-3000.0, 2000.0)
+        )
+    );
+    g.delivered();
+    assert!(g.bridge(true, t(3.5)).commands().is_empty(), "sent once");
+    assert_eq!(g.undelivered(), None);
+}
+
+#[test]
+fn a_held_command_is_sent_by_a_restarted_coach() {
+    let mut g = playing();
+    g.bridge(false, t(1.0));
+    g.request(&go_to(-3000.0, 2000.0), t(1.5));
+    let record = g.resume_record();
+    let mut h = CoachGame::new(CoachSettings::default()).unwrap();
+    let o = h.resume(&record, t(10.0));
+    assert!(o.commands().is_empty());
+    // Held until the process knows a bridge listens.
+    assert!(!h.bridge_listening());
+    let o = h.bridge(true, t(10.1));
+    assert_eq!(o.commands()[0].body, NaoBody::GoToPosition);
+}
+
+#[test]
+fn a_command_the_process_died_sending_is_sent_again() {
+    let mut g = playing();
+    let o = g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    assert_eq!(o.commands().len(), 1);
+    // Killed before it confirmed the command went out: sent again, once.
+    let (_, o) = restarted(&g, t(10.0));
+    assert_eq!(o.said(), [say::BACK]);
+    assert_eq!(o.commands().len(), 1);
+    assert_eq!(o.commands()[0].body, NaoBody::GoToPosition);
+}
+
+#[test]
+fn a_link_lost_before_a_restart_is_back_with_the_first_fresh_packet() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    g.delivered();
+    let lost = NaoLinkEvent {
+        player_number: 2,
+        change: LinkChange::RobotNotResponding,
+        ..Default::default()
+    };
+    g.link(&lost, t(2.0));
+    assert!(!g.resume_record().link_up);
+    let (mut h, _) = restarted(&g, t(10.0));
+    assert!(!h.status(t(10.0)).link_up);
+    // Still silent (only the teammate reports): still lost.
+    let mut stale = world(false, true);
+    stale.robots[0].age_s = 3.0;
+    let o = h.world_model(&stale, t(10.1));
+    assert!(o.said().is_empty() && !h.status(t(10.1)).link_up, "{o:?}");
+    let o = h.game_state(&game(GameState::PLAYING), t(10.2));
+    assert_eq!(o.steps[0].active, [state::LINK_LOST]);
+    assert!(o.said().is_empty(), "said again: {:?}", o.said());
+    // A fresh packet: back, and the walk resumes.
+    let o = h.world_model(&world(false, true), t(11.0));
+    assert!(logged(&o, "anomaly")[0].contains("up again"), "{o:?}");
+    assert_eq!(
+        o.said(),
+        ["The robot is responding again. Resuming. Going to the position."]
+    );
+    assert_eq!(o.commands()[0].body, NaoBody::GoToPosition);
+
+    // Up before the restart: a late world model (a slow machine) does not make it lost; only
+    // `nao/link` does, as without a restart.
+    let g = playing();
+    let (mut h, _) = restarted(&g, t(10.0));
+    h.world_model(&stale, t(10.1));
+    assert!(h.status(t(10.1)).link_up);
+    let o = h.link(&lost, t(10.5));
+    assert_eq!(o.said(), [say::LINK_LOST]);
+}
+
+#[test]
+fn a_coach_that_was_waiting_with_nothing_asked_starts_silently() {
+    let g = started();
+    let (_, o) = restarted(&g, t(5.0));
+    assert!(o.said().is_empty(), "{:?}", o.said());
+    assert!(!logged(&o, "resumed").is_empty());
+}
+
+#[test]
+fn a_record_of_another_machine_or_mode_is_refused() {
+    let r = playing().resume_record();
+    let json = r.to_json();
+    assert!(resume::Resume::from_json(&json).is_ok());
+    let e = resume::Resume::from_json(&json.replace("\"coach\"", "\"touch\"")).unwrap_err();
+    assert!(e.contains("machine"), "{e}");
+    let e = resume::Resume::from_json(&json.replace("coach/playing", "coach/napping")).unwrap_err();
+    assert!(e.contains("no mode"), "{e}");
+    assert!(resume::Resume::from_json("{}").is_err());
+}
+
+#[test]
+fn a_command_published_just_before_the_bridge_went_is_sent_to_the_next_one() {
+    let mut g = playing();
+    let o = g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    assert_eq!(o.commands().len(), 1);
+    g.delivered();
+    // Long before the bridge went: the robot has it.
+    let o = g.command(&voice(Command::LookLeft), t(5.0));
+    assert_eq!(o.commands().len(), 1);
+    g.delivered();
+    // The bridge's going is seen 0.1 s after the last command: that one is sent again.
+    g.bridge(false, t(5.1));
+    let o = g.bridge(true, t(7.0));
+    let c = o.commands();
+    assert_eq!(c.len(), 1, "{o:?}");
+    assert_eq!(
+        (c[0].body, c[0].head),
+        (NaoBody::Keep, interfaces::msg::nao::NaoHead::LookLeft)
+    );
+    g.delivered();
+    // Seen 2 s after: nothing is sent again.
+    g.command(&voice(Command::LookRight), t(10.0));
+    g.delivered();
+    g.bridge(false, t(12.0));
+    assert!(g.bridge(true, t(13.0)).commands().is_empty());
+}

@@ -40,7 +40,7 @@ use interfaces::msg::command::Command;
 use interfaces::msg::nao::{
     FieldPoint, GameState, NaoBody, NaoCommand, NaoHead, NaoStrategy, NaoWorldModel,
 };
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Half the field's length between the goal lines (mm).
 pub const FIELD_HALF_LENGTH_MM: f32 = 4500.0;
@@ -86,6 +86,9 @@ pub struct RulesConfig {
     /// Say "the robot is still not responding" once when the link is still lost after this
     /// long (s).
     pub still_lost_s: f64,
+    /// The components that take `nao/command` to the robot. While none of them subscribes to
+    /// it (a bridge restarting), a command is held and sent once one does; empty: never held.
+    pub bridges: Vec<String>,
 }
 
 impl Default for RulesConfig {
@@ -102,12 +105,13 @@ impl Default for RulesConfig {
             kicked_ball_speed_mm_s: 1000.0,
             still_down_s: 20.0,
             still_lost_s: 10.0,
+            bridges: vec!["nao_bridge".into()],
         }
     }
 }
 
 /// A request from the coach, by voice or from the panel, before any check.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Ask {
     pub body: NaoBody,
     pub head: NaoHead,
