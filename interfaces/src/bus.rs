@@ -1141,6 +1141,28 @@ mod tests {
             .await
             .unwrap();
         let t = Duration::from_secs(5);
+        let hello = Text {
+            text: "hello".into(),
+            ..Text::default()
+        };
+        let bytes = codec::encode(&hello, "robocog.Text").unwrap();
+        // The server's queryable reaches the client through the router a moment after `serve`
+        // returns: until then a call finds nobody (and reaches no counter).
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            match client
+                .raw_call("echo", "robocog.Text", bytes.clone(), t)
+                .await
+            {
+                Err(CallError::NoServer(_)) if Instant::now() < deadline => {
+                    tokio::time::sleep(Duration::from_millis(20)).await
+                }
+                other => {
+                    other.unwrap();
+                    break;
+                }
+            }
+        }
         let garbage: [Vec<u8>; 4] = [
             vec![],
             vec![0x00, 0x01],
@@ -1166,11 +1188,6 @@ mod tests {
                 .load(Ordering::Relaxed),
             4
         );
-        let hello = Text {
-            text: "hello".into(),
-            ..Text::default()
-        };
-        let bytes = codec::encode(&hello, "robocog.Text").unwrap();
         let reply = client
             .raw_call("echo", "robocog.Text", bytes, t)
             .await
