@@ -64,6 +64,7 @@ use interfaces::msg::body::{
 use interfaces::msg::command::{Command, Game, GameCommand};
 use interfaces::msg::speech::Priority;
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack, BallTrackState};
+use interfaces::outbox::Handled;
 
 use crate::engine::{Builder, Context, Definition, DefinitionError, Event, Machine, Step};
 use crate::settings::{JointRest, TouchSettings};
@@ -646,6 +647,9 @@ pub struct TouchGame {
     /// A "touch the ball" taken up from before a restart, carried out once the ball is seen
     /// (see [`resume`]).
     resume_touch: bool,
+    /// The stamps of the commands acted on, kept in the resume record: a command its sender
+    /// sends again after a restart (see `interfaces::outbox`) is carried out once.
+    handled: Handled,
 }
 
 impl TouchGame {
@@ -656,6 +660,7 @@ impl TouchGame {
             machine: Machine::new(def),
             ctx: TouchCtx::new(Arc::new(settings)),
             resume_touch: false,
+            handled: Handled::default(),
         })
     }
 
@@ -743,6 +748,17 @@ impl TouchGame {
     pub fn command(&mut self, cmd: &GameCommand, now: Duration) -> Outcome {
         let name = command_event(cmd.command);
         let mut out = self.advance(now);
+        if !self.handled.first_time(cmd.header.stamp_ns) {
+            out.outputs.push(Output::Log(LogLine {
+                kind: "heard",
+                text: format!(
+                    "\"{}\" again: sent again after a restart, and already carried out",
+                    cmd.text
+                ),
+                distance_m: -1.0,
+            }));
+            return out;
+        }
         out.outputs.push(Output::Log(LogLine {
             kind: "heard",
             text: format!(

@@ -29,6 +29,7 @@ pub mod header;
 pub mod liveliness;
 pub mod msg;
 pub mod node;
+pub mod outbox;
 pub mod ratelimit;
 pub mod raw;
 pub mod router;

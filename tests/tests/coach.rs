@@ -870,6 +870,25 @@ impl Attempt {
                 component_pid(&self.launch, name)
             })
         });
+        self.kill_frozen(name, pid);
+        ups
+    }
+
+    /// SIGSTOP to `name`: alive on the bus (its tokens stay), acting on nothing. Returns its
+    /// pid and its starts so far.
+    fn freeze(&self, name: &str) -> (u32, usize) {
+        let ups = self.ups(name);
+        let pid = tokio::task::block_in_place(|| {
+            eventually(&format!("{name}'s pid"), T, || {
+                component_pid(&self.launch, name)
+            })
+        });
+        signal(pid, "STOP");
+        (pid, ups)
+    }
+
+    /// SIGKILL to `name`, frozen as `pid`; returns once the launcher said it restarts it.
+    fn kill_frozen(&self, name: &str, pid: u32) {
         signal(pid, "KILL");
         tokio::task::block_in_place(|| {
             self.launch
@@ -878,7 +897,6 @@ impl Attempt {
                     l.contains(&format!("{name} stopped")) && l.contains("restart 1/")
                 })
         });
-        ups
     }
 
     fn ups(&self, name: &str) -> usize {
@@ -1090,8 +1108,12 @@ async fn killed_while_walking(name: &str) -> (Attempt, u64, usize) {
 async fn a_killed_speech_recognition_is_restarted_and_the_coach_is_heard() {
     let name = "speech_recognition";
     let (a, taken, ups) = killed_while_walking(name).await;
+    // The dialog tells the coach it cannot hear her, then that it can.
+    a.answered(0, "I can't hear you for a moment. Please wait.")
+        .await;
     a.back(name, ups);
     a.reads(name, &topics::AUDIO_IN).await;
+    a.answered(0, "I can hear you again.").await;
     a.look_left_then_stop(taken, How::Voice).await;
     restarted_once(&a, name);
 }
@@ -1393,4 +1415,116 @@ async fn a_killed_coach_executive_while_penalised_carries_on_after_the_penalty()
         a.transcript()
     );
     checked_once(&a, &[refusal, over]);
+}
+
+/// (d) Commands the Executive never acted on. It is frozen (SIGSTOP) when the panel sends "look
+/// left", which reaches its socket and not its game, then killed; "stop" is given on the panel
+/// while it restarts. The panel sends the first again (its reader went just after it) and holds
+/// the second; the restarted Executive carries out each once, in order, and not the walk it did
+/// before the kill (sent again too when it was in the panel's resend window, and known by its
+/// stamp).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn panel_commands_the_executive_never_acted_on_are_carried_out_once_after_its_restart() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let listen = format!("panel_listen={addr}");
+    let a = Attempt::start("coach-exec-unacted", &["panel=true", &listen]).await;
+    a.game_state(3, "PLAYING").await;
+    a.reads("executive", &topics::COACH_REQUEST).await;
+    let (m, c) = (a.says.len(), a.commands_taken());
+    panel_command(
+        &addr,
+        r#"{"type":"nao","body":"GoToPosition","target":{"x_mm":-3000,"y_mm":1500}}"#,
+    )
+    .await;
+    a.answered(m, "Going to the position.").await;
+    let taken = a.took("GoToPosition at the robot", c, 1.0, 0.0).await;
+
+    let (pid, ups) = a.freeze("executive");
+    panel_command(
+        &addr,
+        r#"{"type":"command","game":"coach","command":"LookLeft"}"#,
+    )
+    .await;
+    assert_eq!(
+        a.said_count(m, "Looking left."),
+        0,
+        "a frozen Executive answered"
+    );
+    a.kill_frozen("executive", pid);
+    panel_command(&addr, r#"{"type":"nao","body":"Stop"}"#).await;
+    a.back("executive", ups);
+    a.answered(m, "Sorry, I'm back.").await;
+    a.answered(m, "Looking left.").await;
+    a.answered(m, "Stopping.").await;
+    a.truth
+        .wait_from("the robot standing", 0, T, |f| {
+            f.controlled_body == "Stop" && f.commands_received >= taken + 2
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert_eq!(
+        a.commands_taken(),
+        taken + 2,
+        "the robot took other commands: {}",
+        a.transcript()
+    );
+    checked_once(
+        &a,
+        &["Going to the position.", "Looking left.", "Stopping."],
+    );
+    for l in a.launch.lines.all() {
+        if l.contains("command_generator |") && (l.contains("holding") || l.contains("again")) {
+            println!("{l}");
+        }
+    }
+}
+
+/// Words the dialog never acted on: it is frozen (SIGSTOP) when the coach says "look left", which
+/// the recognizer hears and sends to it, then killed. The recognizer sends the words again to the
+/// restarted dialog (its reader went just after them), which carries the command out: the coach
+/// does not repeat herself, and the robot takes it once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn words_the_dialog_never_acted_on_are_carried_out_after_its_restart() {
+    let name = "dialogs";
+    let a = Attempt::start("coach-dialog-unacted", &[]).await;
+    a.game_state(3, "PLAYING").await;
+    a.listens().await;
+    a.walk_far().await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let taken = a.commands_taken();
+    let (pid, ups) = a.freeze(name);
+    let m = a.says.len();
+    a.speak("look left").await;
+    tokio::task::block_in_place(|| {
+        a.launch
+            .lines
+            .wait_for("the recognizer hearing \"look left\"", T, |l| {
+                l.contains("speech_recognition |") && l.contains("heard \"look left\"")
+            })
+    });
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(a.said_count(m, "Looking left."), 0, "a frozen dialog acted");
+    a.kill_frozen(name, pid);
+    a.back(name, ups);
+    a.answered(0, "Looking left.").await;
+    let n = a.took("LookLeft at the robot", taken, 0.0, 3.0).await;
+    assert_eq!(n, taken + 1, "{}", a.transcript());
+    let m = a.says.len();
+    a.body(NaoBody::Stop).await;
+    a.answered(m, "Stopping.").await;
+    a.took("Stop at the robot", n, 10.0, 0.0).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert_eq!(a.commands_taken(), taken + 2, "{}", a.transcript());
+    assert_eq!(a.said_count(0, "Looking left."), 1, "{}", a.transcript());
+    restarted_once(&a, name);
+    for l in a.launch.lines.all() {
+        if l.contains("speech_recognition |") && (l.contains("again") || l.contains("holding")) {
+            println!("{l}");
+        }
+    }
 }

@@ -444,7 +444,13 @@ async fn a_killed_camera_is_restarted_and_the_game_carries_on() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_speech_recognition_is_restarted_and_the_game_carries_on() {
-    killed_while_tracking("speech_recognition").await;
+    // The robot says it cannot hear, then that it can; the person waits for it.
+    let game = killed_while_tracking("speech_recognition").await;
+    assert!(
+        game.said_any("can't hear you") && game.said_any("can hear you again"),
+        "{:?}",
+        game.said
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

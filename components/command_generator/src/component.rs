@@ -10,9 +10,13 @@ use crate::camera;
 use crate::coach_status;
 use crate::panel::Outgoing;
 use crate::server::{Hub, router};
+use interfaces::bus::Counters;
+use interfaces::liveliness::Readers;
 use interfaces::msg::Message;
+use interfaces::msg::command::{Answer, GameCommand};
 use interfaces::msg::nao::CoachRequest;
 use interfaces::node::Interface;
+use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, Subscriber, Topic, topics};
 use serde::Serialize;
 use serde_json::json;
@@ -133,7 +137,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
         config.camera_hz,
         bus.clone(),
     ));
-    tasks.spawn(publish_task(bus.clone(), commands));
+    tasks.spawn(publish_task(bus.clone(), hub.clone(), commands));
 
     let app = router(hub.clone());
     let mut stop = shutdown.clone();
@@ -269,27 +273,163 @@ async fn camera_task(
     }
 }
 
-async fn publish_task(bus: Bus, mut commands: mpsc::Receiver<Outgoing>) -> anyhow::Result<()> {
-    let coach = bus.publisher(&topics::COACH_REQUEST).await?;
-    let game = bus.publisher(&topics::GAME_COMMAND).await?;
-    let answer = bus.publisher(&topics::GAME_ANSWER).await?;
-    while let Some(out) = commands.recv().await {
-        if let Some(command) = out.nao {
-            // A coach command: the Executive's coach machine checks and answers it, then sends
-            // it to the robot. Not also on `game/command`, or the machine would get it twice.
-            let mut m = CoachRequest {
-                command,
-                ..CoachRequest::default()
-            };
-            coach.publish(&mut m).await?;
-        } else if let Some(mut m) = out.game {
-            game.publish(&mut m).await?;
-        }
-        if let Some(mut m) = out.answer {
-            answer.publish(&mut m).await?;
-        }
+/// How long a command waits for the component that acts on it (restarting) before it is
+/// dropped, the page told so.
+pub const HOLD: Duration = Duration::from_secs(15);
+
+/// One command topic out of the panel: its publisher, who reads it, and what waits for them.
+/// While no other component subscribes (the Executive, or the dialog, is restarting), a command
+/// is held and sent when one is back; the page hears of both (`panel/delivery` events).
+struct Lane<T: Message> {
+    publisher: interfaces::Publisher<T>,
+    readers: Readers,
+    outbox: Outbox<T>,
+    me: String,
+    topic: &'static str,
+    what: fn(&T) -> String,
+}
+
+impl<T: Message> Lane<T> {
+    async fn new(
+        bus: &Bus,
+        topic: &'static Topic<T>,
+        what: fn(&T) -> String,
+    ) -> anyhow::Result<Lane<T>> {
+        Ok(Lane {
+            publisher: bus.publisher(topic).await?,
+            readers: Readers::watch(bus, topic).await?,
+            outbox: Outbox::new(bus.clock().clone(), HOLD),
+            me: bus.component().to_string(),
+            topic: topic.name(),
+            what,
+        })
     }
-    Ok(())
+
+    /// Some component other than the panel reads the topic.
+    fn read(&self) -> bool {
+        self.readers.now().iter().any(|c| *c != self.me)
+    }
+
+    async fn offer(&mut self, msg: T, hub: &Hub, counters: &Counters) -> anyhow::Result<()> {
+        let what = (self.what)(&msg);
+        match self.outbox.offer(msg) {
+            Offered::Send(mut m) => self.publisher.publish(&mut m).await?,
+            Offered::Held { evicted, .. } => {
+                counters.incr("commands_held");
+                let topic = self.topic;
+                tracing::warn!("nobody reads {topic} (restarting?): holding {what}");
+                delivery(
+                    hub,
+                    "held",
+                    &what,
+                    topic,
+                    "waiting for its reader to come back",
+                );
+                if let Some(old) = evicted {
+                    counters.incr("commands_dropped_no_reader");
+                    let old = (self.what)(&old.msg);
+                    tracing::warn!("dropped {old}: too many commands held");
+                    delivery(hub, "dropped", &old, topic, "too many commands held");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// After a change of readers, or on the tick: what was held goes out, or is dropped.
+    async fn update(&mut self, hub: &Hub, counters: &Counters) -> anyhow::Result<()> {
+        let topic = self.topic;
+        for r in self.outbox.readers(self.read()) {
+            let what = (self.what)(&r.msg);
+            counters.incr("commands_released");
+            tracing::info!(
+                "sending {what} on {topic}, held {:.1} s{}",
+                r.waited.as_secs_f64(),
+                if r.again { " (again)" } else { "" }
+            );
+            self.publisher.publish(&mut r.msg.clone()).await?;
+            if !r.again {
+                let detail = format!("sent after {:.1} s", r.waited.as_secs_f64());
+                delivery(hub, "sent", &what, topic, &detail);
+            }
+        }
+        for r in self.outbox.expire() {
+            counters.incr("commands_dropped_no_reader");
+            let what = (self.what)(&r.msg);
+            tracing::warn!(
+                "dropped {what}{}: nobody read {topic} within {} s",
+                if r.again { " (sent once already)" } else { "" },
+                HOLD.as_secs()
+            );
+            if !r.again {
+                let detail = format!(
+                    "nobody read it within {} s: not carried out",
+                    HOLD.as_secs()
+                );
+                delivery(hub, "dropped", &what, topic, &detail);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Tells the pages what became of a held command.
+fn delivery(hub: &Hub, state: &str, what: &str, topic: &str, detail: &str) {
+    hub.event(envelope(
+        "event",
+        "panel/delivery",
+        &json!({ "state": state, "what": what, "topic": topic, "detail": detail }),
+    ));
+}
+
+async fn publish_task(
+    bus: Bus,
+    hub: Arc<Hub>,
+    mut commands: mpsc::Receiver<Outgoing>,
+) -> anyhow::Result<()> {
+    let mut coach = Lane::new(&bus, &topics::COACH_REQUEST, |m: &CoachRequest| {
+        format!("{:?}", m.command.body)
+    })
+    .await?;
+    let mut game = Lane::new(&bus, &topics::GAME_COMMAND, |m: &GameCommand| {
+        format!("{:?}", m.command)
+    })
+    .await?;
+    let mut answer = Lane::new(&bus, &topics::GAME_ANSWER, |m: &Answer| {
+        (if m.yes { "yes" } else { "no" }).to_string()
+    })
+    .await?;
+    let counters = bus.counters().clone();
+    let mut tick = bus.clock().interval(Duration::from_millis(250));
+    loop {
+        tokio::select! {
+            out = commands.recv() => {
+                let Some(out) = out else { return Ok(()) };
+                if let Some(command) = out.nao {
+                    // A coach command: the Executive's coach machine checks and answers it, then
+                    // sends it to the robot. Not also on `game/command`, or the machine would get
+                    // it twice.
+                    let m = CoachRequest {
+                        command,
+                        ..CoachRequest::default()
+                    };
+                    coach.offer(m, &hub, &counters).await?;
+                } else if let Some(m) = out.game {
+                    game.offer(m, &hub, &counters).await?;
+                }
+                if let Some(m) = out.answer {
+                    answer.offer(m, &hub, &counters).await?;
+                }
+            }
+            _ = coach.readers.changed() => {}
+            _ = game.readers.changed() => {}
+            _ = answer.readers.changed() => {}
+            _ = tick.tick() => {}
+        }
+        coach.update(&hub, &counters).await?;
+        game.update(&hub, &counters).await?;
+        answer.update(&hub, &counters).await?;
+    }
 }
 
 /// The component's flags.

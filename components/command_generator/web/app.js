@@ -116,6 +116,12 @@ function onEvent(topic, d) {
     case 'executive/log': addLog('game-log', `[${d.kind}] ${d.text}`, d.kind); break;
     case 'vision/ball_events': addLog('game-log', `[ball] ${d.kind}`, 'ball'); break;
     case 'nao/link': state.links[d.player_number] = d; renderStatus(); break;
+    case 'panel/delivery':
+      // A command held while the component that acts on it restarts: held, sent, or dropped.
+      addLog('game-log', `[panel] ${d.what} on ${d.topic}: ${d.state}, ${d.detail}`,
+        d.state === 'dropped' ? 'anomaly' : 'cmd');
+      if (d.state !== 'sent') notice(`${d.what}: ${d.state}, ${d.detail}`, d.state === 'held');
+      break;
   }
 }
 

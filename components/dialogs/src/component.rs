@@ -5,6 +5,7 @@ use crate::machine::{Action, Dialog, DialogConfig, Heard};
 use interfaces::msg::command::{CommandSource, GameCommand};
 use interfaces::msg::speech::{SayRequest, SpeakingState};
 use interfaces::node::{Component, Interface};
+use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -27,12 +28,19 @@ pub struct Config {
     pub answer_timeout_s: Option<f64>,
     /// The components that carry out `game/command` (comma-separated; empty: none). While none
     /// of them subscribes to it (one is restarting), a command is held, the robot says "One
-    /// moment, please.", and the command goes out as soon as one is back.
+    /// moment, please.", and the command goes out as soon as one is back. The commands sent in
+    /// the 2 s before the last reader went are sent again with their stamps (it may have died
+    /// before acting on them; the Executive knows the ones it did).
     #[arg(long, value_delimiter = ',', default_value = "executive")]
     pub command_readers: Vec<String>,
     /// How long a held command waits for a reader before it is dropped, the person told so (s).
     #[arg(long, default_value_t = 15.0)]
     pub hold_s: f64,
+    /// The components that hear the person (readers of `audio/in`; comma-separated, empty:
+    /// none). When the last of them goes away (it is restarting), the robot says "I can't hear
+    /// you for a moment. Please wait.", and "I can hear you again." once one is back.
+    #[arg(long, value_delimiter = ',', default_value = "speech_recognition")]
+    pub recognizers: Vec<String>,
 }
 
 /// What the dialog does with a command nobody reads yet.
@@ -42,14 +50,47 @@ pub struct Hold {
     pub readers: Vec<String>,
     /// How long a command is held at most.
     pub max: Duration,
+    /// The components that hear the person (empty: the dialog never says it cannot hear).
+    pub recognizers: Vec<String>,
+}
+
+/// Whether the person can be heard. Once a recognizer was there, its going away is said
+/// ([`CANNOT_HEAR`]), and its return ([`HEAR_AGAIN`]); a dialog that never saw one says nothing.
+#[derive(Debug, Default)]
+pub struct Hearing {
+    seen: bool,
+    deaf: bool,
+}
+
+impl Hearing {
+    /// With a recognizer `present` now: what to say, if anything.
+    pub fn update(&mut self, present: bool) -> Option<&'static str> {
+        match (present, self.deaf) {
+            (true, true) => {
+                self.deaf = false;
+                Some(HEAR_AGAIN)
+            }
+            (true, false) => {
+                self.seen = true;
+                None
+            }
+            (false, false) if self.seen => {
+                self.deaf = true;
+                Some(CANNOT_HEAR)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// What the robot says when it holds a command for a reader that is restarting.
 pub const HOLDING: &str = "One moment, please.";
+/// What the robot says when nothing hears the person any more (the recognizer is restarting).
+pub const CANNOT_HEAR: &str = "I can't hear you for a moment. Please wait.";
+/// What it says when it hears the person again.
+pub const HEAR_AGAIN: &str = "I can hear you again.";
 /// What it says when a held command waited too long and was dropped.
 pub const HOLD_EXPIRED: &str = "Sorry, I could not do that. Please say it again.";
-/// At most this many commands are held; older ones are dropped first.
-const HELD_MAX: usize = 8;
 
 /// The dialog's settings: the `--settings` file, then the flags over it, checked.
 pub fn settings(args: &Config) -> anyhow::Result<DialogConfig> {
@@ -100,14 +141,16 @@ impl Component for Dialogs {
             "--hold-s must be a number of seconds >= 0, got {}",
             config.hold_s
         );
-        let hold = Hold {
-            readers: config
-                .command_readers
-                .iter()
+        let names = |v: &[String]| -> Vec<String> {
+            v.iter()
                 .map(|r| r.trim().to_string())
                 .filter(|r| !r.is_empty())
-                .collect(),
+                .collect()
+        };
+        let hold = Hold {
+            readers: names(&config.command_readers),
             max: Duration::from_secs_f64(config.hold_s),
+            recognizers: names(&config.recognizers),
         };
         Ok((settings(&config)?, hold))
     }
@@ -142,9 +185,10 @@ pub async fn run(
     let commands = bus.publisher(&topics::GAME_COMMAND).await?;
     let say = bus.publisher(&topics::SPEECH_SAY).await?;
     let mut readers = interfaces::liveliness::Readers::watch(&bus, &topics::GAME_COMMAND).await?;
-    // Commands waiting for a reader of game/command, with when they were held.
-    let mut held: std::collections::VecDeque<(GameCommand, interfaces::clock::Moment)> =
-        Default::default();
+    let mut ears = interfaces::liveliness::Readers::watch(&bus, &topics::AUDIO_IN).await?;
+    let mut hearing = Hearing::default();
+    // Commands for the Executive while it restarts (see `interfaces::outbox`).
+    let mut outbox: Outbox<GameCommand> = Outbox::new(bus.clock().clone(), hold.max);
     // Time is the component's clock (the system's, or a replay's with `--clock bus`): the
     // answer time-out and the echo guard run on it.
     let clock = bus.clock().clone();
@@ -156,7 +200,7 @@ pub async fn run(
             u = utterances.recv() => {
                 let u = u?;
                 tracing::info!("heard {:?} (confidence {:.2}, {:?})", u.text, u.confidence, u.command);
-                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command })
+                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns })
             }
             a = answers.recv() => dialog.panel_answer(now(), a?.yes),
             s = speaking.recv() => {
@@ -172,40 +216,53 @@ pub async fn run(
             }
             _ = tick.tick() => dialog.tick(now()),
             _ = readers.changed() => vec![],
+            _ = ears.changed() => vec![],
             _ = shutdown.wait() => return Ok(()),
         };
         let reader_present = hold.readers.is_empty() || readers.any_of(&hold.readers);
         let mut lines: Vec<&'static str> = Vec::new();
-        // Held commands go out, in order, once a reader is back; too old, they are dropped.
-        if reader_present {
-            while let Some((mut msg, since)) = held.pop_front() {
-                tracing::info!(
-                    "carrying out {:?}, held {:.1} s while nobody read {}",
-                    msg.command,
-                    clock.elapsed(since).as_secs_f64(),
-                    topics::GAME_COMMAND.name()
-                );
-                bus.counters().incr("commands_released");
-                msg.header = Default::default();
-                commands.publish(&mut msg).await?;
-            }
-        }
-        while held
-            .front()
-            .is_some_and(|(_, since)| clock.elapsed(*since) > hold.max)
-        {
-            if let Some((msg, _)) = held.pop_front() {
-                tracing::warn!(
-                    "dropped {:?}: none of {:?} read {} within {:.0} s",
-                    msg.command,
-                    hold.readers,
-                    topics::GAME_COMMAND.name(),
-                    hold.max.as_secs_f64()
-                );
-                bus.counters().incr("commands_dropped_no_reader");
-                if !lines.contains(&HOLD_EXPIRED) {
-                    lines.push(HOLD_EXPIRED);
+        if let Some(line) = hearing.update(ears.any_of(&hold.recognizers)) {
+            tracing::warn!(
+                "{}",
+                if line == CANNOT_HEAR {
+                    format!(
+                        "none of {:?} hears the person (restarting?)",
+                        hold.recognizers
+                    )
+                } else {
+                    "the person is heard again".to_string()
                 }
+            );
+            lines.push(line);
+        }
+        // Held commands go out, in order, once a reader is back; too old, they are dropped.
+        for r in outbox.readers(reader_present) {
+            tracing::info!(
+                "carrying out {:?}, held {:.1} s while nobody read {}{}",
+                r.msg.command,
+                r.waited.as_secs_f64(),
+                topics::GAME_COMMAND.name(),
+                if r.again {
+                    " (sent again: its reader went just after it)"
+                } else {
+                    ""
+                }
+            );
+            bus.counters().incr("commands_released");
+            commands.publish(&mut r.msg.clone()).await?;
+        }
+        for r in outbox.expire() {
+            tracing::warn!(
+                "dropped {:?}{}: none of {:?} read {} within {:.0} s",
+                r.msg.command,
+                if r.again { " (sent once already)" } else { "" },
+                hold.readers,
+                topics::GAME_COMMAND.name(),
+                hold.max.as_secs_f64()
+            );
+            bus.counters().incr("commands_dropped_no_reader");
+            if !r.again && !lines.contains(&HOLD_EXPIRED) {
+                lines.push(HOLD_EXPIRED);
             }
         }
         for a in actions {
@@ -217,8 +274,13 @@ pub async fn run(
                         c.confidence,
                         c.confirmed
                     );
-                    let mut msg = GameCommand {
-                        header: Default::default(),
+                    let msg = GameCommand {
+                        // Stamped with when its words were heard: the same command if it comes
+                        // again (see `interfaces::outbox`).
+                        header: interfaces::Header {
+                            stamp_ns: c.stamp_ns,
+                            ..Default::default()
+                        },
                         game: c.game,
                         command: c.command,
                         source: CommandSource::Voice,
@@ -226,25 +288,26 @@ pub async fn run(
                         confidence: c.confidence,
                         confirmed: c.confirmed,
                     };
-                    if reader_present {
-                        commands.publish(&mut msg).await?;
-                    } else {
-                        tracing::warn!(
-                            "none of {:?} reads {} (restarting?): holding {:?} for up to {:.0} s",
-                            hold.readers,
-                            topics::GAME_COMMAND.name(),
-                            msg.command,
-                            hold.max.as_secs_f64()
-                        );
-                        bus.counters().incr("commands_held");
-                        if held.is_empty() {
-                            lines.push(HOLDING);
+                    let command = msg.command;
+                    match outbox.offer(msg) {
+                        Offered::Send(mut msg) => commands.publish(&mut msg).await?,
+                        Offered::Held { first, evicted } => {
+                            tracing::warn!(
+                                "none of {:?} reads {} (restarting?): holding {:?} for up to {:.0} s",
+                                hold.readers,
+                                topics::GAME_COMMAND.name(),
+                                command,
+                                hold.max.as_secs_f64()
+                            );
+                            bus.counters().incr("commands_held");
+                            if first {
+                                lines.push(HOLDING);
+                            }
+                            if let Some(old) = evicted {
+                                tracing::warn!("dropped {:?}: too many held", old.msg.command);
+                                bus.counters().incr("commands_dropped_no_reader");
+                            }
                         }
-                        if held.len() == HELD_MAX {
-                            held.pop_front();
-                            bus.counters().incr("commands_dropped_no_reader");
-                        }
-                        held.push_back((msg, clock.now()));
                     }
                 }
                 Action::Say { text, priority } => {
@@ -279,5 +342,26 @@ pub async fn run(
             })
             .await?;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_robot_says_when_it_cannot_hear_and_when_it_hears_again() {
+        let mut h = Hearing::default();
+        assert_eq!(
+            h.update(false),
+            None,
+            "never heard: nothing to say at start"
+        );
+        assert_eq!(h.update(true), None);
+        assert_eq!(h.update(true), None);
+        assert_eq!(h.update(false), Some(CANNOT_HEAR));
+        assert_eq!(h.update(false), None, "said once");
+        assert_eq!(h.update(true), Some(HEAR_AGAIN));
+        assert_eq!(h.update(true), None);
     }
 }

@@ -79,6 +79,9 @@ pub struct Heard {
     pub text: String,
     pub confidence: f64,
     pub command: Command,
+    /// When the words were heard (the utterance's stamp): the command it becomes keeps it, so
+    /// the Executive knows a command sent again after a restart.
+    pub stamp_ns: i64,
 }
 
 /// A command the dialog lets through.
@@ -89,6 +92,8 @@ pub struct Accepted {
     pub text: String,
     pub confidence: f64,
     pub confirmed: bool,
+    /// When the command's words were heard ([`Heard::stamp_ns`]).
+    pub stamp_ns: i64,
 }
 
 /// Why an utterance was ignored.
@@ -239,6 +244,7 @@ impl Dialog {
                 text: pending.text,
                 confidence: pending.confidence,
                 confirmed: true,
+                stamp_ns: pending.stamp_ns,
             }));
         } else {
             out.push(Action::Dropped(pending.command));
@@ -280,6 +286,7 @@ impl Dialog {
                 text: h.text,
                 confidence: h.confidence,
                 confirmed: false,
+                stamp_ns: h.stamp_ns,
             }));
         } else {
             self.ask(now_s, h, &mut out);
@@ -326,6 +333,7 @@ mod tests {
             text: command.phrase().to_string(),
             confidence,
             command,
+            stamp_ns: 0,
         }
     }
     fn dialog() -> Dialog {
@@ -508,6 +516,7 @@ mod tests {
             text: "touch the ball".into(),
             confidence: 0.95,
             command: Command::TouchBall,
+            stamp_ns: 0,
         };
         assert_eq!(
             d.heard(11.0, touch()),

@@ -1,7 +1,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 //! A command heard while the Executive is away (restarting) is held, the person told "One moment,
 //! please.", and carried out as soon as the Executive reads `game/command` again; held too long,
-//! it is dropped and the person told so. On a real bus (a router on a free port), with the dialog
+//! it is dropped and the person told so. A command the Executive may have died before acting on is
+//! sent again, with its stamp. On a real bus (a router on a free port), with the dialog
 //! running in-process.
 
 use dialogs::component::{HOLD_EXPIRED, HOLDING, Hold, run};
@@ -50,6 +51,7 @@ async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() 
     let hold = Hold {
         readers: vec!["executive".into()],
         max: Duration::from_secs(3),
+        recognizers: vec![],
     };
     let (stop, shutdown): (_, Shutdown) = Shutdown::new();
     let dialog = tokio::spawn(run(dialog_bus, DialogConfig::default(), hold, shutdown));
@@ -65,11 +67,11 @@ async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() 
     // The Executive comes back: the held command reaches it.
     let executive = Bus::open(&args, "executive").await.unwrap();
     let commands = executive.subscriber(&topics::GAME_COMMAND).await.unwrap();
-    let got: GameCommand = tokio::time::timeout(Duration::from_secs(10), commands.recv())
+    let touch: GameCommand = tokio::time::timeout(Duration::from_secs(10), commands.recv())
         .await
         .expect("the held command within 10 s of the Executive's return")
         .unwrap();
-    assert_eq!(got.command, Command::TouchBall);
+    assert_eq!(touch.command, Command::TouchBall);
 
     // While it reads, commands go straight through, and nothing is said about holding.
     heard.publish(&mut utterance(Command::Quit)).await.unwrap();
@@ -79,7 +81,25 @@ async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() 
         .unwrap();
     assert_eq!(got.command, Command::Quit);
 
-    // Away again for longer than the hold: the command is dropped, the person told so.
+    // The Executive dies just after the commands reached it (it may not have acted on them)
+    // and is back half a second later: both come again, in order, each with its stamp, by which
+    // an Executive that did act on one knows it.
+    drop(commands);
+    drop(executive);
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let executive = Bus::open(&args, "executive").await.unwrap();
+    let commands = executive.subscriber(&topics::GAME_COMMAND).await.unwrap();
+    for sent in [&touch, &got] {
+        let again: GameCommand = tokio::time::timeout(Duration::from_secs(10), commands.recv())
+            .await
+            .expect("the command sent again within 10 s of the Executive's return")
+            .unwrap();
+        assert_eq!(again.command, sent.command);
+        assert_eq!(again.header.stamp_ns, sent.header.stamp_ns);
+    }
+
+    // Away again for longer than the hold: the command is dropped, the person told so (and
+    // not about "quit", held again without a reader and dropped too, which was carried out).
     drop(commands);
     drop(executive);
     tokio::time::sleep(Duration::from_millis(500)).await;
@@ -89,6 +109,9 @@ async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() 
         .unwrap();
     said(&says, HOLDING).await;
     said(&says, HOLD_EXPIRED).await;
+    // Once: "quit" expired half a second before "scan the ball", without a word.
+    let more = tokio::time::timeout(Duration::from_millis(1500), says.recv()).await;
+    assert!(more.is_err(), "said more: {more:?}");
 
     stop.send(true).unwrap();
     dialog.await.unwrap().unwrap();

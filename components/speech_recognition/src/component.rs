@@ -7,12 +7,14 @@ use crate::confidence::ConfidenceConfig;
 use crate::model::{AcousticModel, adapted_model_dir};
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
+use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
 use interfaces::msg::speech::Utterance;
 use interfaces::node::{Component, Interface};
+use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Audio chunks (100 ms each from the simulated person and the tests) that may wait for the
 /// decoder: 10 s.
@@ -61,6 +63,15 @@ pub struct Config {
     /// (default: the shipped `grammars/filler.words`).
     #[arg(long)]
     pub fillers: Option<PathBuf>,
+    /// The components that act on `speech/utterance` (comma-separated; the shipped graphs name
+    /// `dialogs`). While none of them subscribes to it (the dialog is restarting), what is heard
+    /// is held and goes out as soon as one is back; what was heard in the 2 s before the last
+    /// one went is sent again with its stamp. Empty (the default): nobody is waited for.
+    #[arg(long, value_delimiter = ',')]
+    pub utterance_readers: Vec<String>,
+    /// How long a held utterance waits for a reader before it is dropped (s).
+    #[arg(long, default_value_t = 15.0)]
+    pub hold_s: f64,
 }
 
 /// The `speech_recognition` component.
@@ -71,6 +82,10 @@ pub struct SpeechRecognition;
 pub struct Prepared {
     pub recognizer: Recognizer,
     pub wav: Option<PathBuf>,
+    /// Who acts on `speech/utterance` (empty: nobody is waited for).
+    pub readers: Vec<String>,
+    /// How long an utterance is held for them at most.
+    pub hold: Duration,
 }
 
 impl Component for SpeechRecognition {
@@ -87,9 +102,21 @@ impl Component for SpeechRecognition {
 
     /// Load the grammar and the acoustic model (seconds) before joining the bus.
     fn prepare(config: Config) -> anyhow::Result<Prepared> {
+        anyhow::ensure!(
+            config.hold_s.is_finite() && config.hold_s >= 0.0,
+            "--hold-s must be a number of seconds >= 0, got {}",
+            config.hold_s
+        );
         Ok(Prepared {
             recognizer: recognizer(&config)?,
             wav: config.wav,
+            readers: config
+                .utterance_readers
+                .iter()
+                .map(|r| r.trim().to_string())
+                .filter(|r| !r.is_empty())
+                .collect(),
+            hold: Duration::from_secs_f64(config.hold_s),
         })
     }
 
@@ -219,8 +246,40 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             }
         })?;
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
+    // What is heard while the dialog restarts waits for it (see `interfaces::outbox`).
+    let mut readers = Readers::watch(&bus, &topics::SPEECH_UTTERANCE).await?;
+    let mut outbox: Outbox<Utterance> = Outbox::new(bus.clock().clone(), prepared.hold);
+    let mut tick = bus.clock().interval(Duration::from_millis(250));
     loop {
+        let present = prepared.readers.is_empty() || readers.any_of(&prepared.readers);
+        for r in outbox.readers(present) {
+            tracing::info!(
+                "sending {:?}, held {:.1} s while nobody read {}{}",
+                r.msg.text,
+                r.waited.as_secs_f64(),
+                topics::SPEECH_UTTERANCE.name(),
+                if r.again {
+                    " (again: its reader went just after it)"
+                } else {
+                    ""
+                }
+            );
+            bus.counters().incr("utterances_released");
+            out.publish(&mut r.msg.clone()).await?;
+        }
+        for r in outbox.expire() {
+            bus.counters().incr("utterances_dropped_no_reader");
+            tracing::warn!(
+                "dropped {:?}: none of {:?} read {} within {:.0} s",
+                r.msg.text,
+                prepared.readers,
+                topics::SPEECH_UTTERANCE.name(),
+                prepared.hold.as_secs_f64()
+            );
+        }
         tokio::select! {
+            _ = readers.changed() => {}
+            _ = tick.tick() => {}
             chunk = audio.recv() => {
                 let chunk = chunk?;
                 let reason = if chunk.sample_rate_hz != RATE_HZ {
@@ -266,10 +325,26 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             r = res_rx.recv() => {
                 let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };
                 let (r, arrived) = r?;
-                let mut msg = to_msg(&r, arrived.elapsed().as_secs_f64());
+                let msg = to_msg(&r, arrived.elapsed().as_secs_f64());
                 tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
                 print(&msg);
-                out.publish(&mut msg).await?;
+                match outbox.offer(msg) {
+                    Offered::Send(mut msg) => out.publish(&mut msg).await?,
+                    Offered::Held { evicted, .. } => {
+                        bus.counters().incr("utterances_held");
+                        tracing::warn!(
+                            "none of {:?} reads {} (restarting?): holding {:?} for up to {:.0} s",
+                            prepared.readers,
+                            topics::SPEECH_UTTERANCE.name(),
+                            r.text,
+                            prepared.hold.as_secs_f64()
+                        );
+                        if let Some(old) = evicted {
+                            bus.counters().incr("utterances_dropped_no_reader");
+                            tracing::warn!("dropped {:?}: too many held", old.msg.text);
+                        }
+                    }
+                }
             }
             _ = shutdown.wait() => return Ok(()),
         }

@@ -32,6 +32,7 @@ use interfaces::msg::nao::{
     NaoWorldModel,
 };
 use interfaces::msg::speech::Priority;
+use interfaces::outbox::Handled;
 
 use super::rules::{self, Ask, Memory, RulesConfig, Situation, Verdict};
 use crate::engine::{
@@ -418,6 +419,9 @@ pub struct CoachGame {
     /// After a resume with the link lost: a fresh packet of our robot in a world model says it
     /// is back (its return was announced on `nao/link` to nobody).
     await_link: bool,
+    /// The stamps of the requests and commands acted on, kept in the resume record: one its
+    /// sender sends again after a restart (see `interfaces::outbox`) is carried out once.
+    handled: Handled,
 }
 
 impl CoachGame {
@@ -444,6 +448,7 @@ impl CoachGame {
             },
             resumed_mode: None,
             await_link: false,
+            handled: Handled::default(),
         })
     }
 
@@ -602,6 +607,18 @@ impl CoachGame {
     /// A request made from the panel (`coach/request`). A GoToPosition target is remembered as
     /// the clicked point (voice "go to position" goes there next).
     pub fn request(&mut self, r: &CoachRequest, now: Duration) -> Outcome {
+        if !self.handled.first_time(r.header.stamp_ns) {
+            self.ctx.log(
+                "heard",
+                format!(
+                    "{:?} again: sent again after a restart, and already carried out",
+                    r.command.body
+                ),
+            );
+            let mut out = self.advance(now);
+            out.outputs.append(&mut self.ctx.outputs);
+            return out;
+        }
         let ask = Ask::from_panel(r);
         if ask.body == NaoBody::GoToPosition {
             self.ctx.memory.clicked = ask.target;
@@ -612,6 +629,18 @@ impl CoachGame {
     /// A command from `game/command` (voice after the dialog, or a panel button). Other games'
     /// commands and the dialog's yes/no are logged and ignored.
     pub fn command(&mut self, cmd: &GameCommand, now: Duration) -> Outcome {
+        if !self.handled.first_time(cmd.header.stamp_ns) {
+            self.ctx.log(
+                "heard",
+                format!(
+                    "{:?} \"{}\" again: sent again after a restart, and already carried out",
+                    cmd.command, cmd.text
+                ),
+            );
+            let mut out = self.advance(now);
+            out.outputs.append(&mut self.ctx.outputs);
+            return out;
+        }
         let mut out = self.advance(now);
         let heard = format!(
             "{:?} \"{}\" ({:?}, confidence {:.2})",

@@ -418,8 +418,10 @@ pub(super) async fn run_touch(
             }
             _ = sleep_until(&clock, deadline) => game.advance(bus_now(&bus)),
         };
-        // The configuration is current before anyone hears of the step.
+        // The configuration is current before anyone hears of the step, and the record is kept
+        // before the step's outputs go out (with the command's stamp, when a command made it).
         *lock(&snapshot) = snapshot_of(&game, &mermaid);
+        kept.save(game.resume_record(), bus.counters());
         out.emit(outcome).await?;
         // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
         // stopped): the ball is lost, said so, and searched for again once it is back.

@@ -48,6 +48,10 @@ pub struct Resume {
     pub arm: Arm,
     /// The last goal id used.
     pub last_goal_id: u64,
+    /// The stamps of the last commands acted on (`interfaces::outbox::Handled`): one sent again
+    /// after a restart is known and not carried out twice.
+    #[serde(default)]
+    pub handled: Vec<i64>,
 }
 
 impl Resume {
@@ -91,6 +95,7 @@ impl TouchGame {
                 Arm::AtRest
             },
             last_goal_id: self.ctx.next_id,
+            handled: self.handled.stamps(),
         })
     }
 
@@ -98,6 +103,7 @@ impl TouchGame {
     /// a game that was waiting starts it as new, silently.
     pub fn resume(&mut self, record: &Resume, now: Duration) -> Outcome {
         self.ctx.next_id = self.ctx.next_id.max(record.last_goal_id);
+        self.handled = Handled::from_stamps(&record.handled);
         let mut out = self.start(now);
         if !record.playing {
             return out;

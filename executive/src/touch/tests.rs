@@ -770,6 +770,30 @@ fn targets(o: &Outcome) -> Vec<&BallTarget> {
         .collect()
 }
 
+/// A command its sender sends again after the Executive restarted (the old process may have died
+/// before acting on it, see `interfaces::outbox`) is carried out once: the stamps of the commands
+/// acted on go into the record.
+#[test]
+fn a_command_sent_again_after_a_restart_is_carried_out_once() {
+    let mut g = game();
+    let mut play = cmd(Command::Play);
+    play.header.stamp_ns = 17;
+    assert_eq!(g.command(&play, t(1.0)).said(), [say::PLAY_ACK]);
+    assert!(g.command(&play, t(1.5)).said().is_empty(), "twice");
+    let (mut fresh, _) = restarted(&g, 2.0);
+    let o = fresh.command(&play, t(3.0));
+    assert!(o.said().is_empty(), "{:?}", o.said());
+    assert!(
+        o.outputs
+            .iter()
+            .any(|x| matches!(x, Output::Log(l) if l.text.contains("already carried out")))
+    );
+    // One it never acted on (it died first) is carried out.
+    let mut scan = cmd(Command::ScanBall);
+    scan.header.stamp_ns = 18;
+    assert_eq!(fresh.command(&scan, t(4.0)).said(), [say::LOOKING]);
+}
+
 #[test]
 fn a_restarted_executive_takes_up_a_waiting_game_silently() {
     let g = game();

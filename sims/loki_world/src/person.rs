@@ -56,6 +56,9 @@ struct Seen {
     /// in a row. The time bound lets a sentence whose end never comes (a speech generator
     /// killed mid-sentence) go.
     robot_sentences: BTreeMap<u64, Instant>,
+    /// The robot said it cannot hear her (its recognizer is restarting): she waits until it
+    /// says it hears her again, [`DEAF_AT_MOST`] at most.
+    deaf_until: Option<Instant>,
     entered: Vec<(Instant, String)>,
     active: Vec<String>,
     reach: Vec<(Instant, String, ReachState)>,
@@ -66,18 +69,27 @@ struct Seen {
 const SENTENCE_SLACK: Duration = Duration::from_secs(1);
 /// How long a queued sentence counts as coming at most.
 const QUEUED_AT_MOST: Duration = Duration::from_secs(15);
+/// How long she waits at most after the robot said it cannot hear her.
+const DEAF_AT_MOST: Duration = Duration::from_secs(60);
 
 impl Seen {
     /// Whether the robot is speaking, or about to say a sentence it has queued.
     fn robot_has_the_floor(&self, now: Instant) -> bool {
         self.robot_sentences.values().any(|&until| until > now)
+            || self.deaf_until.is_some_and(|until| until > now)
     }
 
     /// What the person makes of the robot's `speech/speaking` event at `now`.
     fn on_speaking(&mut self, m: &SpeakingEvent, now: Instant) {
         match m.state {
             SpeakingState::Started => {
-                self.said.push((now, m.text.to_lowercase()));
+                let text = m.text.to_lowercase();
+                if text.contains("can't hear you") {
+                    self.deaf_until = Some(now + DEAF_AT_MOST);
+                } else if text.contains("can hear you again") {
+                    self.deaf_until = None;
+                }
+                self.said.push((now, text));
                 let lasts = Duration::from_secs_f64(m.duration_s.clamp(0.0, 60.0));
                 self.robot_sentences
                     .insert(m.id, now + lasts + SENTENCE_SLACK);
@@ -358,7 +370,12 @@ async fn say(
 ) -> anyhow::Result<()> {
     let turn = Instant::now() + Duration::from_secs_f64(TURN_WAIT_S);
     let mut waited = false;
-    while lock(seen).robot_has_the_floor(Instant::now()) && Instant::now() < turn {
+    // Told it cannot hear her, she waits for it to say it can (bounded by DEAF_AT_MOST).
+    let turn = |seen: &Seen| seen.deaf_until.map_or(turn, |d| d.max(turn));
+    while {
+        let s = lock(seen);
+        s.robot_has_the_floor(Instant::now()) && Instant::now() < turn(&s)
+    } {
         waited = true;
         tokio::select! {
             _ = tokio::time::sleep(Duration::from_millis(50)) => {}
@@ -682,6 +699,30 @@ mod tests {
         seen.on_speaking(&event(5, SpeakingState::Started, 2.0), t1);
         assert!(seen.robot_has_the_floor(t1 + Duration::from_millis(2900)));
         assert!(!seen.robot_has_the_floor(t1 + Duration::from_millis(3100)));
+    }
+
+    /// Told the robot cannot hear her, she waits until it says it can (a minute at most).
+    #[test]
+    fn she_waits_while_the_robot_cannot_hear_her() {
+        let t0 = Instant::now();
+        let mut seen = Seen::default();
+        let mut e = event(7, SpeakingState::Started, 2.0);
+        e.text = "I can't hear you for a moment. Please wait.".into();
+        seen.on_speaking(&e, t0);
+        seen.on_speaking(
+            &event(7, SpeakingState::Finished, 2.0),
+            t0 + Duration::from_secs(2),
+        );
+        assert!(seen.robot_has_the_floor(t0 + Duration::from_secs(30)));
+        assert!(!seen.robot_has_the_floor(t0 + DEAF_AT_MOST + Duration::from_secs(1)));
+        let mut e = event(8, SpeakingState::Started, 1.0);
+        e.text = "I can hear you again.".into();
+        seen.on_speaking(&e, t0 + Duration::from_secs(31));
+        seen.on_speaking(
+            &event(8, SpeakingState::Finished, 1.0),
+            t0 + Duration::from_secs(32),
+        );
+        assert!(!seen.robot_has_the_floor(t0 + Duration::from_secs(32)));
     }
 
     #[test]

@@ -77,6 +77,10 @@ pub struct Resume {
     /// What the robot may not have (see [`CoachGame::undelivered`]).
     pub undelivered: Option<NaoCommand>,
     pub last_answer: String,
+    /// The stamps of the last commands acted on (`interfaces::outbox::Handled`): one sent again
+    /// after a restart is known and not carried out twice.
+    #[serde(default)]
+    pub handled: Vec<i64>,
 }
 
 impl Resume {
@@ -159,6 +163,7 @@ impl CoachGame {
             link_up: self.ctx.situation.link_up,
             undelivered: self.ctx.undelivered.clone(),
             last_answer: self.ctx.last_answer.clone(),
+            handled: self.handled.stamps(),
         }
     }
 
@@ -181,6 +186,7 @@ impl CoachGame {
         c.bridge_up = false;
         self.resumed_mode = record.mode_path();
         self.await_link = !record.link_up;
+        self.handled = Handled::from_stamps(&record.handled);
         let mut out = self.start(now);
         self.ctx.log(
             "resumed",

@@ -434,6 +434,35 @@ fn a_restarted_coach_keeps_the_command_under_way_and_does_not_send_it_again() {
     );
 }
 
+/// A request or a command its sender sends again after the Executive restarted (the old process
+/// may have died before acting on it, see `interfaces::outbox`) is carried out once: the stamps
+/// acted on go into the record.
+#[test]
+fn a_request_sent_again_after_a_restart_is_carried_out_once() {
+    let mut g = playing();
+    let mut walk = go_to(-3000.0, 2000.0);
+    walk.header.stamp_ns = 41;
+    assert_eq!(g.request(&walk, t(1.0)).commands().len(), 1);
+    let mut left = voice(Command::LookLeft);
+    left.header.stamp_ns = 42;
+    assert_eq!(g.command(&left, t(2.0)).commands().len(), 1);
+    g.delivered();
+    let (mut h, _) = restarted(&g, t(3.0));
+    h.world_model(&world(false, true), t(3.1));
+    h.game_state(&game(GameState::PLAYING), t(3.2));
+    for o in [h.request(&walk, t(4.0)), h.command(&left, t(4.1))] {
+        assert!(o.commands().is_empty() && o.said().is_empty(), "{o:?}");
+        assert!(
+            logged(&o, "heard")[0].contains("already carried out"),
+            "{o:?}"
+        );
+    }
+    // One it never acted on is carried out.
+    let mut right = voice(Command::LookRight);
+    right.header.stamp_ns = 43;
+    assert_eq!(h.command(&right, t(5.0)).commands().len(), 1);
+}
+
 #[test]
 fn a_request_kept_in_set_is_done_when_playing_starts_after_a_restart() {
     let mut g = started();
