@@ -8,27 +8,37 @@ use std::path::{Path, PathBuf};
 
 use interfaces::bus::Counters;
 
-/// A record a game keeps: JSON, and checked when read back (the machine it belongs to).
-pub trait Record: Clone + PartialEq {
-    fn to_json(&self) -> String;
-    fn from_json(text: &str) -> Result<Self, String>;
-}
+/// A record a game keeps: JSON (one line), and checked when read back: the machine it belongs
+/// to, then the record's own [`Record::check`].
+pub trait Record: Clone + PartialEq + serde::Serialize + serde::de::DeserializeOwned {
+    /// The machine whose record this is.
+    const MACHINE: &'static str;
 
-impl Record for crate::touch::resume::Resume {
-    fn to_json(&self) -> String {
-        crate::touch::resume::Resume::to_json(self)
-    }
-    fn from_json(text: &str) -> Result<Self, String> {
-        crate::touch::resume::Resume::from_json(text)
-    }
-}
+    /// The machine the record says it belongs to.
+    fn machine(&self) -> &str;
 
-impl Record for crate::coach::machine::resume::Resume {
-    fn to_json(&self) -> String {
-        crate::coach::machine::resume::Resume::to_json(self)
+    /// What else a record read back must satisfy.
+    fn check(&self) -> Result<(), String> {
+        Ok(())
     }
+
+    /// The record as JSON (one line).
+    fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+
+    /// A record read back, or why it cannot be used.
     fn from_json(text: &str) -> Result<Self, String> {
-        crate::coach::machine::resume::Resume::from_json(text)
+        let r: Self = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if r.machine() != Self::MACHINE {
+            return Err(format!(
+                "a record of machine {:?}, not {:?}",
+                r.machine(),
+                Self::MACHINE
+            ));
+        }
+        r.check()?;
+        Ok(r)
     }
 }
 

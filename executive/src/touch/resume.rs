@@ -54,22 +54,10 @@ pub struct Resume {
     pub handled: Vec<i64>,
 }
 
-impl Resume {
-    /// The record as JSON (one line).
-    pub fn to_json(&self) -> String {
-        serde_json::to_string(self).unwrap_or_default()
-    }
-
-    /// A record read back, or why it cannot be used.
-    pub fn from_json(text: &str) -> Result<Resume, String> {
-        let r: Resume = serde_json::from_str(text).map_err(|e| e.to_string())?;
-        if r.machine != MACHINE {
-            return Err(format!(
-                "a record of machine {:?}, not {MACHINE:?}",
-                r.machine
-            ));
-        }
-        Ok(r)
+impl crate::state_file::Record for Resume {
+    const MACHINE: &'static str = MACHINE;
+    fn machine(&self) -> &str {
+        &self.machine
     }
 }
 

@@ -1,6 +1,7 @@
 //! The touch-the-ball machine on a virtual clock: scripted inputs, asserted outputs.
 
 use super::*;
+use crate::state_file::Record;
 use interfaces::msg::command::CommandSource;
 
 fn t(s: f64) -> Duration {

@@ -83,27 +83,20 @@ pub struct Resume {
     pub handled: Vec<i64>,
 }
 
+impl crate::state_file::Record for Resume {
+    const MACHINE: &'static str = MACHINE;
+    fn machine(&self) -> &str {
+        &self.machine
+    }
+    fn check(&self) -> Result<(), String> {
+        match self.mode_path() {
+            Some(_) => Ok(()),
+            None => Err(format!("no mode {:?} in the coach machine", self.mode)),
+        }
+    }
+}
+
 impl Resume {
-    /// The record as JSON (one line).
-    pub fn to_json(&self) -> String {
-        serde_json::to_string(self).unwrap_or_default()
-    }
-
-    /// A record read back, or why it cannot be used.
-    pub fn from_json(text: &str) -> Result<Resume, String> {
-        let r: Resume = serde_json::from_str(text).map_err(|e| e.to_string())?;
-        if r.machine != MACHINE {
-            return Err(format!(
-                "a record of machine {:?}, not {MACHINE:?}",
-                r.machine
-            ));
-        }
-        if r.mode_path().is_none() {
-            return Err(format!("no mode {:?} in the coach machine", r.mode));
-        }
-        Ok(r)
-    }
-
     /// The mode's path in the machine.
     fn mode_path(&self) -> Option<&'static str> {
         state::MODES.into_iter().find(|m| *m == self.mode)

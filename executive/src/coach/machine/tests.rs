@@ -2,6 +2,7 @@
 //! The coach machine driven by messages on a virtual clock.
 
 use super::*;
+use crate::state_file::Record;
 use interfaces::msg::command::CommandSource;
 use interfaces::msg::nao::{
     FieldPoint, FieldPose, PlayerPenalty, PlayerRole, TeamRobot, TeamStatus,
