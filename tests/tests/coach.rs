@@ -874,6 +874,32 @@ impl Attempt {
         ups
     }
 
+    /// An attempt in PLAYING with the panel on a free port; returns it and the panel's address.
+    async fn with_panel(tag: &str) -> (Attempt, String) {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let addr = format!("127.0.0.1:{port}");
+        let listen = format!("panel_listen={addr}");
+        let a = Attempt::start(tag, &["panel=true", &listen]).await;
+        a.game_state(3, "PLAYING").await;
+        (a, addr)
+    }
+
+    /// The robot walks to [`FAR`], asked from the page at `addr` (answered and taken).
+    async fn walk_far_from_the_page(&self, addr: &str) -> u64 {
+        let (m, c) = (self.says.len(), self.commands_taken());
+        panel_command(
+            addr,
+            r#"{"type":"nao","body":"GoToPosition","target":{"x_mm":-3000,"y_mm":1500}}"#,
+        )
+        .await;
+        self.answered(m, "Going to the position.").await;
+        self.took("GoToPosition at the robot", c, 1.0, 0.0).await
+    }
+
     /// SIGSTOP to `name`: alive on the bus (its tokens stay), acting on nothing. Returns its
     /// pid and its starts so far.
     fn freeze(&self, name: &str) -> (u32, usize) {
@@ -1242,24 +1268,8 @@ async fn a_killed_bridge_is_restarted_and_a_command_given_meanwhile_reaches_the_
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_killed_panel_is_restarted_and_takes_commands_again() {
     let name = "command_generator";
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let addr = format!("127.0.0.1:{port}");
-    let listen = format!("panel_listen={addr}");
-    let a = Attempt::start("coach-kill-panel", &["panel=true", &listen]).await;
-    a.game_state(3, "PLAYING").await;
-    // The walk from the page.
-    let (m, c) = (a.says.len(), a.commands_taken());
-    panel_command(
-        &addr,
-        r#"{"type":"nao","body":"GoToPosition","target":{"x_mm":-3000,"y_mm":1500}}"#,
-    )
-    .await;
-    a.answered(m, "Going to the position.").await;
-    a.took("GoToPosition at the robot", c, 1.0, 0.0).await;
+    let (a, addr) = Attempt::with_panel("coach-kill-panel").await;
+    a.walk_far_from_the_page(&addr).await;
     tokio::time::sleep(Duration::from_millis(500)).await;
     let taken = a.commands_taken();
     let ups = a.kill(name);
@@ -1425,24 +1435,10 @@ async fn a_killed_coach_executive_while_penalised_carries_on_after_the_penalty()
 /// stamp).
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn panel_commands_the_executive_never_acted_on_are_carried_out_once_after_its_restart() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let addr = format!("127.0.0.1:{port}");
-    let listen = format!("panel_listen={addr}");
-    let a = Attempt::start("coach-exec-unacted", &["panel=true", &listen]).await;
-    a.game_state(3, "PLAYING").await;
+    let (a, addr) = Attempt::with_panel("coach-exec-unacted").await;
     a.reads("executive", &topics::COACH_REQUEST).await;
-    let (m, c) = (a.says.len(), a.commands_taken());
-    panel_command(
-        &addr,
-        r#"{"type":"nao","body":"GoToPosition","target":{"x_mm":-3000,"y_mm":1500}}"#,
-    )
-    .await;
-    a.answered(m, "Going to the position.").await;
-    let taken = a.took("GoToPosition at the robot", c, 1.0, 0.0).await;
+    let m = a.says.len();
+    let taken = a.walk_far_from_the_page(&addr).await;
 
     let (pid, ups) = a.freeze("executive");
     panel_command(
