@@ -657,9 +657,17 @@ fn lengths_fit(opcode: u8, body: &[u8]) -> Result<(), String> {
         }
         op::CHUNK_INDEX => {
             w.skip(32)?;
-            w.block("message index offsets")?;
+            // Entries of a u16 channel id and a u64 offset: a length between two entries makes
+            // the `mcap` crate read on past the map, and take other bytes for the compression
+            // string's length (4 GB, found by the fuzzer).
+            w.entries("message index offsets", 10)?;
             w.skip(8)?;
             w.block("compression")?;
+        }
+        op::MESSAGE_INDEX => {
+            w.skip(2)?;
+            // Entries of a u64 time and a u64 offset.
+            w.entries("message index", 16)?;
         }
         op::ATTACHMENT => {
             w.skip(16)?;
@@ -725,6 +733,17 @@ impl Walk<'_> {
         }
         self.at += len;
         Ok(len)
+    }
+
+    /// A `u32` byte length and that many bytes, a whole number of `size`-byte entries.
+    fn entries(&mut self, what: &str, size: usize) -> Result<(), String> {
+        let len = self.block(what)?;
+        if len % size != 0 {
+            return Err(format!(
+                "the {what} take {len} bytes, not a whole number of {size}-byte entries"
+            ));
+        }
+        Ok(())
     }
 
     /// A `u32` byte length, then string pairs filling exactly that many bytes.
@@ -938,6 +957,33 @@ mod tests {
         std::fs::write(&p, crash).unwrap();
         let results: Vec<_> = RecordingReader::open(&p).unwrap().collect();
         assert!(results.last().is_some_and(|r| r.is_err()), "{results:?}");
+    }
+
+    /// A chunk index whose offset map stops between two 10-byte entries: the `mcap` crate read
+    /// on past it and took other bytes for a string's length (4 GB). Refused as damage.
+    #[test]
+    fn a_map_length_between_entries_is_damage_not_an_allocation() {
+        let mut body = vec![0u8; 32];
+        body.extend_from_slice(&28u32.to_le_bytes());
+        body.extend_from_slice(&[0; 28]);
+        body.extend_from_slice(&[0; 8]);
+        body.extend_from_slice(&0u32.to_le_bytes());
+        body.extend_from_slice(&[0; 16]);
+        let e = lengths_fit(mcap::records::op::CHUNK_INDEX, &body).unwrap_err();
+        assert!(e.contains("not a whole number of 10-byte entries"), "{e}");
+        let mut index = 7u16.to_le_bytes().to_vec();
+        index.extend_from_slice(&24u32.to_le_bytes());
+        index.extend_from_slice(&[0; 24]);
+        assert!(lengths_fit(mcap::records::op::MESSAGE_INDEX, &index).is_err());
+        // The file the fuzzer made, whole.
+        let oom =
+            include_bytes!("../../tests/fuzz/regressions/mcap/chunk-index-map-between-entries");
+        let p = tmp("map_between_entries.mcap");
+        std::fs::write(&p, oom).unwrap();
+        if let Ok(reader) = RecordingReader::open(&p) {
+            let results: Vec<_> = reader.collect();
+            assert!(results.iter().any(|r| r.is_err()), "{results:?}");
+        }
     }
 
     #[test]
