@@ -18,6 +18,8 @@ enum Verb {
     Check(command::check::Args),
     /// List, echo, measure, describe or publish topics of a running graph.
     Topic(command::topic::Args),
+    /// List, describe or call the services of a running graph.
+    Service(command::service::Args),
     /// List the live components of a running graph.
     Component(command::component::Args),
     /// Record the topics of a running graph into an MCAP file.
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         match cli.verb {
             Verb::Launch(a) => command::launch::execute(a).await,
             Verb::Topic(a) => command::topic::execute(a).await,
+            Verb::Service(a) => command::service::execute(a).await,
             Verb::Component(a) => command::component::execute(a).await,
             Verb::Record(a) => command::record::execute(a).await,
             Verb::Replay(a) => command::replay::execute(a).await,

@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used)]
-//! `robocog topic` and `robocog component` against a running graph, with no opt-in.
+//! `robocog topic`, `robocog service` and `robocog component` against a running graph, with no
+//! opt-in.
 
 use robocog_tests::*;
 use std::time::Duration;
@@ -141,4 +142,95 @@ args = ["--role", "listener"]
         names.contains(&"talker") && names.contains(&"listener"),
         "{names:?}"
     );
+}
+
+/// `robocog service list | info | call` against an echo server: the service found from the graph
+/// with its types and server, a call answered with the value, an error reply with its code, and
+/// wrong requests refused before anything is sent.
+#[test]
+fn service_tools_list_describe_and_call_a_running_graph() {
+    let ns = unique_namespace("service");
+    let m = write_manifest(
+        &scratch(&ns),
+        "graph.toml",
+        r#"
+[[component]]
+name = "echoer"
+binary = "@FIXTURE@"
+args = ["--role", "echo-server"]
+"#,
+    );
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("echoer up", Duration::from_secs(20), |l| {
+            l.contains("echoer is up")
+        });
+    let t = Duration::from_secs(30);
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+
+    let out = launch.robocog(&["service", "list", "--json"], t);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let list: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let echo = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|x| x["service"] == "echo")
+        .unwrap_or_else(|| panic!("echo listed: {list}"));
+    assert_eq!(echo["request"][0], "robocog.Text");
+    assert_eq!(echo["reply"][0], "robocog.Text");
+    assert_eq!(echo["servers"][0], "echoer");
+    let table = text(&launch.robocog(&["service", "list"], t).stdout);
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("echo ") && l.contains("robocog.Text") && l.contains("echoer")),
+        "{table}"
+    );
+
+    let out = launch.robocog(&["service", "info", "echo"], t);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let info = text(&out.stdout);
+    assert!(
+        info.contains("servers:  echoer") && info.contains("shape of robocog.Text"),
+        "{info}"
+    );
+
+    // A call: the reply as one line of JSON.
+    let out = launch.robocog(&["service", "call", "echo", r#"{"text": "hello"}"#], t);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let reply: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(reply["text"], "HELLO");
+
+    // The server's error: its code and message, exit 1.
+    let out = launch.robocog(&["service", "call", "echo"], t);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("BadRequest") && err.contains("nothing to echo"),
+        "{err}"
+    );
+
+    // Wrong requests: refused with the reason, exit 2.
+    for (args, why) in [
+        (
+            vec!["service", "call", "echo", r#"{"txt": "x"}"#],
+            "no field \"txt\"",
+        ),
+        (vec!["service", "call", "echo", "hello"], "not JSON"),
+        (
+            vec!["service", "call", "Echo!", "{}"],
+            "invalid service name",
+        ),
+    ] {
+        let out = launch.robocog(&args, t);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains(why), "{args:?}: {err}");
+    }
+    // Nobody serves it: exit 1, said so.
+    let out = launch.robocog(&["service", "call", "nobody/here"], t);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("serves \"nobody/here\""));
 }

@@ -57,6 +57,9 @@ pub struct TypeEntry {
     pub from_json: fn(serde_json::Value) -> Result<Vec<u8>, RegistryError>,
     /// The JSON of a default value: what `robocog topic info` shows as the shape of the type.
     pub example: fn() -> serde_json::Value,
+    /// A service's value reply of this type, as [`crate::raw::RawReply::Ok`] holds it (the
+    /// reply's variant, then the value), to JSON.
+    pub reply_to_json: fn(&[u8]) -> Result<serde_json::Value, RegistryError>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -97,6 +100,18 @@ fn json_to_cdr<T: Message>(json: serde_json::Value) -> Result<Vec<u8>, RegistryE
     Ok(codec::encode(&v, T::TYPE_NAME)?)
 }
 
+fn cdr_reply_to_json<T: Message>(wire: &[u8]) -> Result<serde_json::Value, RegistryError> {
+    let v: T = match crate::raw::RawReply::Ok(wire.to_vec()).value() {
+        Some(v) => v?,
+        // (An `Ok` reply always has a value.)
+        None => return Ok(serde_json::Value::Null),
+    };
+    serde_json::to_value(&v).map_err(|source| RegistryError::Json {
+        type_name: T::TYPE_NAME,
+        source,
+    })
+}
+
 fn example_json<T: Message>() -> serde_json::Value {
     serde_json::to_value(T::default()).unwrap_or(serde_json::Value::Null)
 }
@@ -117,6 +132,7 @@ macro_rules! messages {
                 to_json: cdr_to_json::<$ty>,
                 from_json: json_to_cdr::<$ty>,
                 example: example_json::<$ty>,
+                reply_to_json: cdr_reply_to_json::<$ty>,
             }),*
         ];
     };

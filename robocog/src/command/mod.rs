@@ -14,6 +14,7 @@ pub mod component;
 pub mod launch;
 pub mod record;
 pub mod replay;
+pub mod service;
 pub mod topic;
 pub mod view;
 

@@ -358,7 +358,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
 }
 
 /// Lay `given` over the default value `base`, refusing fields the type does not have.
-fn merge(
+pub(crate) fn merge(
     base: &mut serde_json::Value,
     given: &serde_json::Value,
     type_name: &str,
