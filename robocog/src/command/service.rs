@@ -89,11 +89,7 @@ fn services(tokens: &[Token]) -> BTreeMap<String, ServiceInfo> {
 }
 
 fn check_service(name: &str) -> anyhow::Result<()> {
-    if interfaces::topic::is_valid_name(name) {
-        Ok(())
-    } else {
-        anyhow::bail!("invalid service name {name:?}: lowercase letters, digits, '_', '-', '/'")
-    }
+    super::topic::check_name("service", name)
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {

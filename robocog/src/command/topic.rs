@@ -120,10 +120,15 @@ fn topics(tokens: &[Token]) -> BTreeMap<String, TopicInfo> {
 }
 
 pub(crate) fn check_topic(name: &str) -> anyhow::Result<()> {
+    check_name("topic", name)
+}
+
+/// A topic's or a service's name (`kind`), checked.
+pub(crate) fn check_name(kind: &str, name: &str) -> anyhow::Result<()> {
     if interfaces::topic::is_valid_name(name) {
         Ok(())
     } else {
-        anyhow::bail!("invalid topic name {name:?}: lowercase letters, digits, '_', '-', '/'")
+        anyhow::bail!("invalid {kind} name {name:?}: lowercase letters, digits, '_', '-', '/'")
     }
 }
 
