@@ -32,6 +32,9 @@ need_debs() {
 need_voice_debs() {
   need_debs libpocketsphinx-dev pocketsphinx-en-us pocketsphinx espeak-ng libespeak-ng-dev sox \
     sphinxtrain sphinxbase-utils
+  # The microphone and speaker (audio_io, through libpulse) and the sound server the tests
+  # start as the room (pulseaudio, with pactl and parec).
+  need_debs libpulse-dev pulseaudio pulseaudio-utils
 }
 
 # The head camera's driver library and its test stand-in: libfreenect (the Kinect v1) and the

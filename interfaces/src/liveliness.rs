@@ -121,9 +121,9 @@ pub fn parse(ns: &str, key: &str) -> Option<Token> {
     }
 }
 
-/// The components subscribed to one topic, kept current from their liveliness tokens (see
-/// [`Readers::watch`]). Tools (`robocog record`, `topic echo`, the viewer) subscribe without a
-/// token and never count.
+/// The components subscribed to one topic ([`Readers::watch`]), or publishing on it
+/// ([`Readers::watch_writers`]), kept current from their liveliness tokens. Tools (`robocog
+/// record`, `topic echo`, the viewer) subscribe without a token and never count.
 pub struct Readers {
     rx: tokio::sync::watch::Receiver<std::collections::BTreeSet<String>>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
@@ -141,23 +141,44 @@ impl Readers {
         bus: &crate::Bus,
         topic: &crate::topic::Topic<T>,
     ) -> Result<Readers, crate::bus::BusError> {
+        Self::watch_tokens(bus, topic.name(), 's').await
+    }
+
+    /// Watch which components of `bus`'s namespace publish on `topic` (a component that
+    /// withdraws its publisher, as `audio_io` does while its microphone is lost, leaves).
+    pub async fn watch_writers<T: crate::msg::Message>(
+        bus: &crate::Bus,
+        topic: &crate::topic::Topic<T>,
+    ) -> Result<Readers, crate::bus::BusError> {
+        Self::watch_tokens(bus, topic.name(), 'p').await
+    }
+
+    /// Watch the tokens of `kind` (`s` subscriber, `p` publisher) on the topic `name`.
+    async fn watch_tokens(
+        bus: &crate::Bus,
+        name: &str,
+        kind: char,
+    ) -> Result<Readers, crate::bus::BusError> {
         let ns = bus.namespace().to_string();
         let (tx, rx) = tokio::sync::watch::channel(std::collections::BTreeSet::new());
         // One entry per token key (a component may hold several subscriptions of one topic).
         let keys: std::sync::Mutex<std::collections::BTreeMap<String, String>> = Default::default();
-        let name = topic.name().to_string();
+        let name = name.to_string();
         let subscriber = bus
             .session()
             .liveliness()
-            .declare_subscriber(format!("robocog/{ns}/_live/s/**"))
+            .declare_subscriber(format!("robocog/{ns}/_live/{kind}/**"))
             .history(true)
             .callback(move |sample| {
                 let key = sample.key_expr().as_str().to_string();
-                let Some(Token::Subscriber {
-                    component, topic, ..
-                }) = parse(&ns, &key)
-                else {
-                    return;
+                let (component, topic) = match parse(&ns, &key) {
+                    Some(Token::Subscriber {
+                        component, topic, ..
+                    }) if kind == 's' => (component, topic),
+                    Some(Token::Publisher {
+                        component, topic, ..
+                    }) if kind == 'p' => (component, topic),
+                    _ => return,
                 };
                 if topic != name {
                     return;
@@ -176,7 +197,7 @@ impl Readers {
             })
             .await
             .map_err(|e| crate::bus::BusError::Zenoh {
-                what: "watching the topic's readers".into(),
+                what: "watching the topic's readers or writers".into(),
                 reason: e.to_string(),
             })?;
         Ok(Readers {

@@ -483,3 +483,111 @@ pub fn read_recording(path: &Path) -> (mcap::Summary, Vec<Rec>, BTreeMap<String,
     }
     (summary, msgs, meta)
 }
+
+/// A PulseAudio sound server of one test, standing for a room with a microphone in it: a null
+/// sink `room` (what is played into the room) and a virtual source `mic` on the room's monitor
+/// (what a microphone in the room hears). It listens on an anonymous unix socket in a fresh
+/// folder ([`SoundServer::address`], libpulse's server string) and is stopped when dropped.
+/// Nothing of it leaves the test's scratch folder: no other client or test can reach it.
+/// As root it runs in system mode (it drops to the `pulse` user that Debian's package makes).
+pub struct SoundServer {
+    child: Child,
+    dir: PathBuf,
+    /// The server string to give clients (`unix:<folder>/native`).
+    pub address: String,
+    /// What the server logged.
+    pub log: PathBuf,
+}
+
+impl SoundServer {
+    /// Start one for the test `tag`, waiting (10 s at most) until it answers.
+    pub fn start(tag: &str) -> SoundServer {
+        let dir = scratch(&unique_namespace(&format!("sound-{tag}"))).join("pulse");
+        std::fs::create_dir_all(&dir).expect("sound server dir");
+        // The server drops to its own user: it must be able to make its socket here.
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777))
+            .expect("sound server dir mode");
+        let socket = dir.join("native");
+        let script = dir.join("room.pa");
+        std::fs::write(
+            &script,
+            format!(
+                "load-module module-native-protocol-unix socket={} auth-anonymous=1\n\
+                 load-module module-null-sink sink_name=room rate=48000 channels=2\n\
+                 load-module module-virtual-source source_name=mic master=room.monitor\n",
+                socket.display()
+            ),
+        )
+        .expect("sound server script");
+        let log = dir.join("server.log");
+        use std::os::unix::fs::MetadataExt;
+        let root = std::fs::metadata("/proc/self").is_ok_and(|m| m.uid() == 0);
+        let mut cmd = Command::new("pulseaudio");
+        if root {
+            cmd.arg("--system");
+        }
+        cmd.args([
+            "--daemonize=no",
+            "--use-pid-file=no",
+            "--disallow-exit",
+            "--exit-idle-time=-1",
+            "--log-target=stderr",
+            "-n",
+            "-F",
+        ])
+        .arg(&script)
+        // Its runtime folder (made by the server itself, which insists on owning it).
+        .env("PULSE_RUNTIME_PATH", dir.join("runtime"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).expect("sound server log"));
+        let child = cmd
+            .spawn()
+            .expect("start pulseaudio (Debian's pulseaudio package; scripts/test installs it)");
+        let server = SoundServer {
+            child,
+            dir,
+            address: format!("unix:{}", socket.display()),
+            log,
+        };
+        eventually("the sound server answers", Duration::from_secs(10), || {
+            server
+                .pactl(&["list", "short", "sources"])
+                .status
+                .success()
+                .then_some(())
+        });
+        server
+    }
+
+    /// Run `pactl` against this server.
+    pub fn pactl(&self, args: &[&str]) -> Output {
+        let mut all = vec!["--server".to_string(), self.address.clone()];
+        all.extend(args.iter().map(|a| a.to_string()));
+        run(Path::new("pactl"), &all, Duration::from_secs(10))
+    }
+
+    /// Record `source` as 16 kHz mono s16le into `file` until the returned child is stopped.
+    pub fn record(&self, source: &str, file: &Path) -> Child {
+        Command::new("parec")
+            .args(["--server", &self.address, "--device", source])
+            .args(["--raw", "--format=s16le", "--rate=16000", "--channels=1"])
+            .arg("--latency-msec=20")
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(file).expect("recording file"))
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start parec (Debian's pulseaudio-utils)")
+    }
+}
+
+impl Drop for SoundServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        // The folder (with the server's log) stays for a failed test to be read; the scratch
+        // folders are pruned by later runs.
+        let _ = std::fs::remove_file(self.dir.join("native"));
+    }
+}

@@ -228,6 +228,46 @@ async fn touch_a_still_ball() {
     );
 }
 
+/// The whole game with every sound going through a sound server, as it does on the robot: the
+/// person speaks into the room (a PulseAudio null sink), the robot's microphone (`audio_io`)
+/// captures a virtual source on the room's monitor, and the robot's voice plays into the same
+/// room, where its microphone hears it too.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn touch_a_still_ball_with_every_sound_through_a_sound_server() {
+    let server = SoundServer::start("touch");
+    let address = format!("sound_server={}", server.address);
+    let game = play(
+        "still",
+        &[
+            "audio=true",
+            "microphone=mic",
+            "speaker=room",
+            "person_voice=pulse",
+            "person_room=room",
+            "dialog_microphones=audio_io",
+            &address,
+        ],
+        Duration::from_secs(180),
+    )
+    .await;
+    check_ok(&game);
+    game.entered_in_order(&[
+        "playing",
+        "searching",
+        "tracking",
+        "reaching",
+        "touching",
+        "finished",
+    ])
+    .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    let out = game.output.join("\n");
+    assert!(
+        out.contains("the person speaks into the sound server's sink \"room\""),
+        "{out}"
+    );
+    assert!(out.contains("microphone \"mic\" onto audio/in"), "{out}");
+}
+
 /// The whole game with the camera's frames going as a real Kinect's do: the simulated Kinect sends
 /// colour and 11-bit disparities through a live fakenect dump, the rgbd freenect driver reads them
 /// through Debian's fakenect libfreenect and registers depth to colour.

@@ -256,3 +256,320 @@ async fn the_generator_speaks_and_an_urgent_request_interrupts() {
     assert!(seen.contains(&(2, SpeakingState::Finished)), "{seen:?}");
     assert!(dir.join("wavs").join("2.wav").is_file());
 }
+
+/// The speech components with the robot's microphone and speaker (`audio_io`) on a sound server
+/// of the test's own: the room is its null sink, the microphone a virtual source on the room's
+/// monitor.
+fn sound_manifest(server: &SoundServer) -> String {
+    sound_manifest_with(server, "")
+}
+
+/// [`sound_manifest`] with the dialog watching the components `microphones` (`--microphones`).
+fn sound_manifest_with(server: &SoundServer, microphones: &str) -> String {
+    format!(
+        r#"
+[[component]]
+name = "speech_recognition"
+binary = "{}"
+args = ["--game", "touch", "--utterance-readers", "dialogs"]
+
+[[component]]
+name = "dialogs"
+binary = "{}"
+# The test reads game/command itself (there is no Executive here).
+args = ["--command-readers", "test-sound", "--microphones", "{}"]
+depends_on = ["speech_generator"]
+external_inputs = ["game/answer"]
+
+[[component]]
+name = "speech_generator"
+binary = "{}"
+
+[[component]]
+name = "audio_io"
+binary = "{}"
+args = ["--server", "{}", "--source", "mic", "--sink", "room"]
+depends_on = ["speech_recognition"]
+"#,
+        bin("speech_recognition").display(),
+        bin("dialogs").display(),
+        microphones,
+        bin("speech_generator").display(),
+        bin("audio_io").display(),
+        server.address,
+    )
+}
+
+/// The first and the last 20 ms frame of a 16 kHz s16le recording that hold sound (RMS above
+/// `threshold`), in seconds from its start.
+fn sound_span(pcm: &[u8], threshold: f64) -> Option<(f64, f64)> {
+    let samples: Vec<i16> = pcm
+        .chunks_exact(2)
+        .map(|b| i16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    let loud: Vec<usize> = samples
+        .chunks(320)
+        .enumerate()
+        .filter(|(_, f)| {
+            let e = f.iter().map(|&s| f64::from(s).powi(2)).sum::<f64>() / f.len() as f64;
+            e.sqrt() > threshold
+        })
+        .map(|(i, _)| i)
+        .collect();
+    Some((
+        *loud.first()? as f64 * 0.02,
+        (*loud.last()? + 1) as f64 * 0.02,
+    ))
+}
+
+/// The robot's voice goes through the sound server into the room, for as long as it was
+/// synthesized; its own microphone hears it, and what it hears of itself is not taken for a
+/// command, even though the sentence is made of commands.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_robots_voice_is_played_into_the_room_and_not_taken_for_a_command() {
+    let server = SoundServer::start("voice");
+    let ns = unique_namespace("sound");
+    let dir = scratch(&ns);
+    let m = dir.join("sound.toml");
+    std::fs::write(&m, sound_manifest(&server)).unwrap();
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("audio_io up", Duration::from_secs(60), |l| {
+            l.contains("audio_io is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-sound")
+        .await
+        .unwrap();
+    let commands = bus.subscriber(&topics::GAME_COMMAND).await.unwrap();
+    let utterances = bus.subscriber(&topics::SPEECH_UTTERANCE).await.unwrap();
+    let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await.unwrap();
+    let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+    let say = bus.publisher(&topics::SPEECH_SAY).await.unwrap();
+    // The room as a second microphone would hear it.
+    let room = dir.join("room.raw");
+    let mut recorder = server.record("room.monitor", &room);
+    // The recognizer hears the silent room for a moment first (it settles its noise floor).
+    tokio::time::sleep(Duration::from_secs(2)).await;
+
+    let text = "Let's play. Touch the ball. Touch the ball now.";
+    say.publish(&mut SayRequest {
+        id: 1,
+        text: text.into(),
+        priority: Priority::Normal,
+        ..SayRequest::default()
+    })
+    .await
+    .unwrap();
+    let mut finished = None;
+    let mut heard = Vec::new();
+    let mut wrongly = Vec::new();
+    let mut audio_io = None;
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(40);
+    let mut quiet_until = None;
+    loop {
+        tokio::select! {
+            s = speaking.recv() => {
+                let s = s.unwrap();
+                if s.id == 1 && s.state == SpeakingState::Finished {
+                    finished = Some(s.duration_s);
+                    // What the microphone heard last comes through the recognizer within a few
+                    // seconds (end-pointing, decoding).
+                    quiet_until = Some(tokio::time::Instant::now() + Duration::from_secs(5));
+                }
+                assert_ne!(s.state, SpeakingState::Failed, "{s:?}");
+            }
+            u = utterances.recv() => heard.push(u.unwrap().text),
+            c = commands.recv() => wrongly.push(c.unwrap()),
+            d = diagnostics.recv() => {
+                let d = d.unwrap();
+                if d.component == "audio_io" {
+                    audio_io = Some(d);
+                }
+            }
+            _ = tokio::time::sleep_until(quiet_until.unwrap_or(deadline)) => break,
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the sentence did not finish within 40 s\n{}",
+            launch.lines.all().join("\n")
+        );
+    }
+    let _ = recorder.kill();
+    let _ = recorder.wait();
+    let duration_s = finished.expect("the sentence finished");
+
+    // It played, and for as long as it was synthesized.
+    let pcm = std::fs::read(&room).unwrap();
+    let (start, end) = sound_span(&pcm, 300.0).expect("the room heard the robot");
+    let played = end - start;
+    assert!(
+        (played - duration_s).abs() < 0.3,
+        "played {played:.2} s of a {duration_s:.2} s sentence"
+    );
+    // The microphone heard it, and the dialog took none of it for a command.
+    assert!(
+        !heard.is_empty(),
+        "the recognizer heard nothing of the robot's voice\n{}",
+        launch.lines.all().join("\n")
+    );
+    assert!(
+        wrongly.is_empty(),
+        "the robot took its own voice for {wrongly:?} (heard {heard:?})"
+    );
+    // Counted on diagnostics: it captured and played, and the voice never ran dry.
+    let d = audio_io.expect("audio_io's diagnostics");
+    assert!(d.get("capture_chunks") > 100, "{d:?}");
+    assert!(
+        d.get("playback_chunks") >= (duration_s * 10.0) as u64 - 1,
+        "{d:?}"
+    );
+    assert_eq!(d.get("playback_underruns"), 0, "{d:?}");
+    assert_eq!(d.get("capture_overruns"), 0, "{d:?}");
+}
+
+/// A microphone the sound server does not have: audio_io says which devices there are, exits
+/// with the configuration code, and the launcher does not restart it.
+#[test]
+fn a_microphone_that_is_not_there_is_named_with_the_ones_there_are() {
+    let server = SoundServer::start("nodevice");
+    let out = run(
+        &bin("audio_io"),
+        &[
+            "--server".into(),
+            server.address.clone(),
+            "--source".into(),
+            "usb-headset".into(),
+            "--preflight".into(),
+        ],
+        Duration::from_secs(30),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(78), "{err}");
+    assert!(
+        err.contains("no source (microphone) named \"usb-headset\""),
+        "{err}"
+    );
+    assert!(
+        err.contains("  mic [default]") && err.contains("  room.monitor"),
+        "{err}"
+    );
+
+    let ns = unique_namespace("nodevice");
+    let m = scratch(&ns).join("mic.toml");
+    std::fs::write(
+        &m,
+        format!(
+            "[[component]]\nname = \"audio_io\"\nbinary = \"{}\"\nrestart = \"on-failure\"\n\
+             args = [\"--server\", \"{}\", \"--source\", \"usb-headset\"]\n",
+            bin("audio_io").display(),
+            server.address
+        ),
+    )
+    .unwrap();
+    let mut launch = Launch::start(&m, &ns, &[]);
+    let status = launch.wait_exit(Duration::from_secs(30));
+    let all = launch.lines.all().join("\n");
+    assert_eq!(status.code(), Some(78), "{all}");
+    assert!(all.contains("usb-headset"), "{all}");
+    assert!(!all.contains("restart 1/"), "never restarted: {all}");
+}
+
+/// The microphone unplugged in the middle of a game (its source leaves the sound server): the
+/// robot says it cannot hear, `audio_io` logs and counts it, and when the microphone is back it
+/// is opened again and the robot says so.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_microphone_lost_mid_game_is_said_and_opened_again_when_it_is_back() {
+    let server = SoundServer::start("lost");
+    let ns = unique_namespace("lostmic");
+    let dir = scratch(&ns);
+    let m = dir.join("sound.toml");
+    std::fs::write(&m, sound_manifest_with(&server, "audio_io")).unwrap();
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("audio_io up", Duration::from_secs(60), |l| {
+            l.contains("audio_io is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-sound")
+        .await
+        .unwrap();
+    let said = bus.subscriber(&topics::SPEECH_SAY).await.unwrap();
+    let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+    // The dialog has seen the recognizer and the microphone (it says nothing until it has).
+    tokio::time::sleep(Duration::from_secs(2)).await;
+
+    let modules =
+        String::from_utf8_lossy(&server.pactl(&["list", "short", "modules"]).stdout).to_string();
+    let index = modules
+        .lines()
+        .find(|l| l.contains("module-virtual-source"))
+        .and_then(|l| l.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no microphone module in\n{modules}"))
+        .to_string();
+    assert!(server.pactl(&["unload-module", &index]).status.success());
+    let line = next_line(&said, Duration::from_secs(15)).await;
+    assert_eq!(line, "I can't hear you for a moment. Please wait.");
+    launch
+        .lines
+        .wait_for("lost logged", Duration::from_secs(5), |l| {
+            l.contains("lost the microphone \"mic\"")
+        });
+    let lost = diagnostics_until(&diagnostics, |d| {
+        d.component == "audio_io" && d.get("microphone_lost") == 1
+    })
+    .await;
+
+    assert!(
+        server
+            .pactl(&[
+                "load-module",
+                "module-virtual-source",
+                "source_name=mic",
+                "master=room.monitor"
+            ])
+            .status
+            .success()
+    );
+    let line = next_line(&said, Duration::from_secs(15)).await;
+    assert_eq!(line, "I can hear you again.");
+    launch
+        .lines
+        .wait_for("back logged", Duration::from_secs(5), |l| {
+            l.contains("the microphone \"mic\" is back")
+        });
+    // And it captures again (50 chunks are a second).
+    let at_loss = lost.get("capture_chunks");
+    diagnostics_until(&diagnostics, |d| {
+        d.component == "audio_io" && d.get("capture_chunks") >= at_loss + 50
+    })
+    .await;
+}
+
+/// The next thing the robot is asked to say, within `timeout`.
+async fn next_line(said: &interfaces::Subscriber<SayRequest>, timeout: Duration) -> String {
+    tokio::time::timeout(timeout, said.recv())
+        .await
+        .unwrap_or_else(|_| panic!("the robot said nothing within {timeout:?}"))
+        .unwrap()
+        .text
+}
+
+/// The first diagnostics that `pick` accepts (10 s at most).
+async fn diagnostics_until(
+    diagnostics: &interfaces::Subscriber<interfaces::msg::diag::Diagnostics>,
+    pick: impl Fn(&interfaces::msg::diag::Diagnostics) -> bool,
+) -> interfaces::msg::diag::Diagnostics {
+    let mut last = None;
+    let found = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            let d = diagnostics.recv().await.unwrap();
+            if pick(&d) {
+                return d;
+            }
+            last = Some(d);
+        }
+    })
+    .await;
+    found.unwrap_or_else(|_| panic!("no such diagnostics within 10 s; the last: {last:?}"))
+}

@@ -41,6 +41,11 @@ pub struct Config {
     /// you for a moment. Please wait.", and "I can hear you again." once one is back.
     #[arg(long, value_delimiter = ',', default_value = "speech_recognition")]
     pub recognizers: Vec<String>,
+    /// The components that capture the microphone (writers of `audio/in`; comma-separated,
+    /// empty: not watched). While none of them publishes it (the microphone is lost and
+    /// `audio_io` withdrew its publisher), the robot says it cannot hear, as for a recognizer.
+    #[arg(long, value_delimiter = ',', default_value = "")]
+    pub microphones: Vec<String>,
 }
 
 /// What the dialog does with a command nobody reads yet.
@@ -52,6 +57,8 @@ pub struct Hold {
     pub max: Duration,
     /// The components that hear the person (empty: the dialog never says it cannot hear).
     pub recognizers: Vec<String>,
+    /// The components that capture the microphone (empty: not watched).
+    pub microphones: Vec<String>,
 }
 
 /// Whether the person can be heard. Once a recognizer was there, its going away is said
@@ -151,6 +158,7 @@ impl Component for Dialogs {
             readers: names(&config.command_readers),
             max: Duration::from_secs_f64(config.hold_s),
             recognizers: names(&config.recognizers),
+            microphones: names(&config.microphones),
         };
         Ok((settings(&config)?, hold))
     }
@@ -186,6 +194,7 @@ pub async fn run(
     let say = bus.publisher(&topics::SPEECH_SAY).await?;
     let mut readers = interfaces::liveliness::Readers::watch(&bus, &topics::GAME_COMMAND).await?;
     let mut ears = interfaces::liveliness::Readers::watch(&bus, &topics::AUDIO_IN).await?;
+    let mut mics = interfaces::liveliness::Readers::watch_writers(&bus, &topics::AUDIO_IN).await?;
     let mut hearing = Hearing::default();
     // Commands for the Executive while it restarts (see `interfaces::outbox`).
     let mut outbox: Outbox<GameCommand> = Outbox::new(bus.clock().clone(), hold.max);
@@ -217,17 +226,25 @@ pub async fn run(
             _ = tick.tick() => dialog.tick(now()),
             _ = readers.changed() => vec![],
             _ = ears.changed() => vec![],
+            _ = mics.changed() => vec![],
             _ = shutdown.wait() => return Ok(()),
         };
         let reader_present = hold.readers.is_empty() || readers.any_of(&hold.readers);
         let mut lines: Vec<&'static str> = Vec::new();
-        if let Some(line) = hearing.update(ears.any_of(&hold.recognizers)) {
+        let recognizer = ears.any_of(&hold.recognizers);
+        let microphone = hold.microphones.is_empty() || mics.any_of(&hold.microphones);
+        if let Some(line) = hearing.update(recognizer && microphone) {
             tracing::warn!(
                 "{}",
-                if line == CANNOT_HEAR {
+                if line == CANNOT_HEAR && !recognizer {
                     format!(
                         "none of {:?} hears the person (restarting?)",
                         hold.recognizers
+                    )
+                } else if line == CANNOT_HEAR {
+                    format!(
+                        "none of {:?} captures the microphone (lost?)",
+                        hold.microphones
                     )
                 } else {
                     "the person is heard again".to_string()

@@ -52,6 +52,7 @@ async fn a_command_heard_while_the_executive_is_away_is_held_then_carried_out() 
         readers: vec!["executive".into()],
         max: Duration::from_secs(3),
         recognizers: vec![],
+        microphones: vec![],
     };
     let (stop, shutdown): (_, Shutdown) = Shutdown::new();
     let dialog = tokio::spawn(run(dialog_bus, DialogConfig::default(), hold, shutdown));

@@ -2,7 +2,7 @@
 //! moves the ball on `sim/ball`) and checks what the robot does. Exits 0 when the scenario
 //! completes, 1 at the first expectation not met (naming the step and what was seen instead).
 
-use crate::person::{self, PersonConfig};
+use crate::person::{self, PersonConfig, VoiceOut};
 use crate::scenario::Scenario;
 use interfaces::node::{Component, Interface};
 use interfaces::{Bus, Shutdown, topics};
@@ -33,6 +33,24 @@ pub struct Config {
     /// Check the scenario and print its steps, then exit.
     #[arg(long)]
     pub check: bool,
+    /// Where her voice goes: `bus`, straight onto audio/in; `pulse`, into a sound server's sink
+    /// (the room) for the robot's microphone (`audio_io`) to capture.
+    #[arg(long, value_enum, default_value_t = Voice::Bus)]
+    pub voice: Voice,
+    /// With `--voice pulse`: the sound server's address; empty: libpulse's usual one (which
+    /// honours PULSE_SERVER).
+    #[arg(long, default_value = "")]
+    pub voice_server: String,
+    /// With `--voice pulse`: the sink standing for the room.
+    #[arg(long, default_value = "@DEFAULT_SINK@")]
+    pub voice_sink: String,
+}
+
+/// `--voice`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Voice {
+    Bus,
+    Pulse,
 }
 
 /// The `loki_world` component.
@@ -49,11 +67,13 @@ impl Component for LokiWorld {
     /// The person, and whether `--check` asked only for the scenario's steps.
     type Prepared = (PersonConfig, bool);
 
-    fn interface(_: &Config) -> Interface {
-        Interface::new(Self::NAME)
-            .publishes(&topics::SIM_BALL)
-            .publishes(&topics::AUDIO_IN)
-            .subscribes(&topics::SPEECH_SPEAKING)
+    fn interface(config: &Config) -> Interface {
+        let i = Interface::new(Self::NAME).publishes(&topics::SIM_BALL);
+        let i = match config.voice {
+            Voice::Bus => i.publishes(&topics::AUDIO_IN),
+            Voice::Pulse => i,
+        };
+        i.subscribes(&topics::SPEECH_SPEAKING)
             .subscribes(&topics::EXECUTIVE_TRANSITIONS)
             .subscribes(&topics::BODY_REACH_STATUS)
             .subscribes(&topics::VISION_BALL_EVENTS)
@@ -69,6 +89,25 @@ impl Component for LokiWorld {
         {
             anyhow::bail!("--ball-rate-hz must be in (0, 1000]");
         }
+        let voice_out = match config.voice {
+            Voice::Bus => VoiceOut::Bus,
+            Voice::Pulse => {
+                let server = (!config.voice_server.is_empty()).then_some(config.voice_server);
+                let devices = pulse::devices(server.as_deref())?;
+                if !devices.has(pulse::Kind::Sink, &config.voice_sink) {
+                    return Err(pulse::Error::NoSuchDevice {
+                        kind: pulse::Kind::Sink,
+                        name: config.voice_sink,
+                        listing: devices.listing(pulse::Kind::Sink),
+                    }
+                    .into());
+                }
+                VoiceOut::Pulse {
+                    server,
+                    sink: config.voice_sink,
+                }
+            }
+        };
         let person = PersonConfig {
             scenario,
             ball_rate_hz: config.ball_rate_hz,
@@ -76,6 +115,7 @@ impl Component for LokiWorld {
             camera_frame: config.camera_frame,
             settle_s: config.settle_s.clamp(0.0, 60.0),
             seed: config.seed,
+            voice_out,
         };
         Ok((person, config.check))
     }

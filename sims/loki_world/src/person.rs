@@ -44,7 +44,25 @@ pub struct PersonConfig {
     pub settle_s: f64,
     /// Seed of the room noise.
     pub seed: u64,
+    /// Where her voice goes.
+    pub voice_out: VoiceOut,
 }
+
+/// Where the person's voice (and the room noise around it) goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum VoiceOut {
+    /// Straight onto `audio/in`, as the microphone's chunks would be.
+    Bus,
+    /// Into a sound server's sink (the room), for a microphone (`audio_io`) to capture.
+    Pulse {
+        /// The server's address (`None`: libpulse's usual one).
+        server: Option<String>,
+        sink: String,
+    },
+}
+
+/// What the room's sink keeps queued of her voice (the voice's own latency into the room).
+pub const PULSE_BUFFER: Duration = Duration::from_millis(200);
 
 /// What the person saw, for the expectations.
 #[derive(Debug, Default)]
@@ -214,8 +232,11 @@ pub async fn run(
     let speech_power = pcm::active_power(&calib).max(1e-12);
     let noise_power = speech_power / 10f64.powf(sc.voice.snr_db / 10.0);
     let (speech_tx, speech_rx) = mpsc::channel::<SpeechJob>(4);
-    let audio_pub = bus.publisher(&topics::AUDIO_IN).await?;
-    tokio::spawn(audio_stream(audio_pub, speech_rx, noise_power, cfg.seed));
+    let out = match &cfg.voice_out {
+        VoiceOut::Bus => AudioOut::Bus(bus.publisher(&topics::AUDIO_IN).await?),
+        VoiceOut::Pulse { server, sink } => AudioOut::Pulse(into_room(server.clone(), sink)?),
+    };
+    tokio::spawn(audio_stream(out, speech_rx, noise_power, cfg.seed));
 
     // The senses.
     spawn_senses(&bus, seen.clone()).await?;
@@ -399,9 +420,46 @@ async fn say(
     }
 }
 
+/// Where [`audio_stream`] puts its chunks.
+enum AudioOut {
+    Bus(interfaces::Publisher<AudioChunk>),
+    /// To the thread that writes them into the sound server.
+    Pulse(std::sync::mpsc::SyncSender<Vec<i16>>),
+}
+
+/// Open the room's `sink` and start the thread that plays what the returned sender gets. A
+/// chunk the server does not take in time is dropped and logged (the person's voice would
+/// stutter: the test fails on its own expectations, with the log saying why).
+fn into_room(
+    server: Option<String>,
+    sink: &str,
+) -> anyhow::Result<std::sync::mpsc::SyncSender<Vec<i16>>> {
+    let mut playback = pulse::Playback::open(
+        server.as_deref(),
+        sink,
+        RATE_HZ,
+        1,
+        PULSE_BUFFER,
+        "person's voice",
+    )?;
+    tracing::info!("the person speaks into the sound server's sink {sink:?}");
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<i16>>(10);
+    std::thread::Builder::new()
+        .name("person-voice".into())
+        .spawn(move || {
+            while let Ok(chunk) = rx.recv() {
+                if let Err(e) = playback.write(&chunk) {
+                    tracing::warn!("the person's voice cannot reach the room: {e}");
+                    return;
+                }
+            }
+        })?;
+    Ok(tx)
+}
+
 /// Room noise in real time, with speech mixed in when there is some.
 async fn audio_stream(
-    out: interfaces::Publisher<AudioChunk>,
+    out: AudioOut,
     mut speech: mpsc::Receiver<SpeechJob>,
     noise_power: f64,
     seed: u64,
@@ -437,8 +495,24 @@ async fn audio_stream(
         if finished && let Some((_, _, done)) = current.take() {
             let _ = done.send(());
         }
-        if let Err(e) = out.publish(&mut AudioChunk::mono(RATE_HZ, &chunk)).await {
-            tracing::warn!("cannot publish audio/in: {e}");
+        match &out {
+            AudioOut::Bus(p) => {
+                if let Err(e) = p.publish(&mut AudioChunk::mono(RATE_HZ, &chunk)).await {
+                    tracing::warn!("cannot publish audio/in: {e}");
+                }
+            }
+            AudioOut::Pulse(tx) => match tx.try_send(chunk) {
+                Ok(()) => {}
+                Err(std::sync::mpsc::TrySendError::Full(_)) => {
+                    tracing::warn!(
+                        "the sound server is not taking the person's voice: a chunk is dropped"
+                    );
+                }
+                Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
+                    tracing::warn!("the person's voice stopped: its sound server is gone");
+                    return;
+                }
+            },
         }
     }
 }

@@ -1,0 +1,230 @@
+//! `scripts/bench audio`: the audio path through a sound server, as the robot uses it.
+//!
+//! - **Round trip, speaker to microphone**: a click sent on `audio/out` until it comes back on
+//!   `audio/in`, through `audio_io`, the sound server's sink (the room), the virtual source on
+//!   its monitor (the microphone) and `audio_io` again: two bus hops, the playback buffer and the
+//!   capture chunk.
+//! - **The peer (the floor)**: the same click written straight into the same sink with libpulse
+//!   and read back from the same source, with the same buffering (the playback buffer filled with
+//!   silence first, as `audio_io` does for the start of a sentence, and 20 ms capture chunks).
+//!   The difference is what the bus and the component cost.
+//! - **Capture to `audio/in`**: for every chunk, its arrival on the bus minus its stamp (the
+//!   capture time of its first sample, as `audio_io` estimates it from the server's latency).
+//!
+//! The sound server is the caller's (`scripts/bench audio` starts one with a null sink `room`
+//! and a virtual source `mic` on its monitor). Prints a table, then one JSON line.
+
+use audio_io::component::{self, Config, Driver};
+use clap::Parser;
+use interfaces::msg::speech::AudioChunk;
+use interfaces::node::Shutdown;
+use interfaces::router::open_router;
+use interfaces::{Bus, ConnectArgs, topics};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+#[derive(Debug, Clone, Parser)]
+struct Args {
+    /// The sound server (libpulse's address, e.g. unix:/path/native).
+    #[arg(long)]
+    server: String,
+    /// The source that hears the sink.
+    #[arg(long, default_value = "mic")]
+    source: String,
+    /// The sink standing for the room.
+    #[arg(long, default_value = "room")]
+    sink: String,
+    /// Clicks per measurement.
+    #[arg(long, default_value_t = 40)]
+    clicks: usize,
+    /// Clicks before measuring (the streams and the sink start).
+    #[arg(long, default_value_t = 3)]
+    warmup: usize,
+    /// Time between two clicks (ms): the room is silent again before the next.
+    #[arg(long, default_value_t = 500)]
+    gap_ms: u64,
+}
+
+const RATE_HZ: u32 = 16_000;
+/// The playback buffer, as `audio_io`'s default.
+const BUFFER: Duration = Duration::from_millis(200);
+/// 20 ms capture chunks, as `audio_io`'s default.
+const CHUNK_FRAMES: usize = 320;
+/// A sample louder than this is the click (the room is otherwise digital silence).
+const LOUD: i16 = 4000;
+
+/// A 100 ms chunk starting with a 5 ms click.
+fn click() -> Vec<i16> {
+    let mut v = vec![0i16; 1600];
+    for (i, s) in v.iter_mut().take(80).enumerate() {
+        *s = if i % 2 == 0 { 12_000 } else { -12_000 };
+    }
+    v
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let i = ((v.len() - 1) as f64 * p).round() as usize;
+    v[i]
+}
+
+/// The floor: libpulse alone. Returns the round trips (ms).
+fn floor(args: &Args) -> anyhow::Result<Vec<f64>> {
+    let server = Some(args.server.as_str());
+    let mut play = pulse::Playback::open(server, &args.sink, RATE_HZ, 1, BUFFER, "bench click")?;
+    let mut capture =
+        pulse::Capture::open(server, &args.source, RATE_HZ, 1, CHUNK_FRAMES, "bench mic")?;
+    let (tx, rx) = mpsc::sync_channel::<Instant>(64);
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stopped = stop.clone();
+    let reader = std::thread::Builder::new()
+        .name("bench-mic".into())
+        .spawn(move || {
+            let mut buf = Vec::new();
+            while !stopped.load(std::sync::atomic::Ordering::Relaxed)
+                && capture.read(&mut buf).is_ok()
+            {
+                if buf.iter().any(|s| s.abs() > LOUD) && tx.try_send(Instant::now()).is_err() {
+                    return;
+                }
+            }
+        })?;
+    let pad = vec![0i16; (BUFFER.as_secs_f64() * f64::from(RATE_HZ)) as usize - 1600];
+    let mut trips = Vec::new();
+    for i in 0..args.warmup + args.clicks {
+        std::thread::sleep(Duration::from_millis(args.gap_ms));
+        while rx.try_recv().is_ok() {}
+        let mut data = pad.clone();
+        data.extend(click());
+        let t0 = Instant::now();
+        play.write(&data)?;
+        if let Ok(t1) = rx.recv_timeout(Duration::from_secs(2))
+            && i >= args.warmup
+        {
+            trips.push((t1 - t0).as_secs_f64() * 1000.0);
+        }
+        // The rest of the click's chunk.
+        while rx.recv_timeout(Duration::from_millis(150)).is_ok() {}
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    drop(play);
+    let _ = reader.join();
+    Ok(trips)
+}
+
+/// Through robocog: `audio/out` to `audio/in` via `audio_io`. Returns the round trips and the
+/// capture-to-bus delays (ms).
+async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
+    let (_router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
+    let connect = ConnectArgs::to_router(&endpoint, &format!("bench-audio-{}", std::process::id()));
+    let config = Config {
+        driver: Driver::Pulse,
+        server: args.server.clone(),
+        source: args.source.clone(),
+        sink: args.sink.clone(),
+        no_capture: false,
+        no_playback: false,
+        rate_hz: RATE_HZ,
+        chunk_ms: 20,
+        playback_buffer_ms: BUFFER.as_millis() as u32,
+        reopen_s: 1.0,
+    };
+    let prepared = component::prepare(config)?;
+    let component_bus = Bus::open(&connect, "audio_io").await?;
+    let (stop, shutdown) = Shutdown::new();
+    let running = tokio::spawn(component::run(component_bus, prepared, shutdown));
+    let bus = Bus::open(&connect, "bench_audio").await?;
+    let out = bus.publisher(&topics::AUDIO_OUT).await?;
+    let heard = bus.subscriber(&topics::AUDIO_IN).await?;
+    // Wait until the microphone's chunks arrive (the subscription has reached the router).
+    tokio::time::timeout(Duration::from_secs(10), heard.recv()).await??;
+    let mut trips = Vec::new();
+    let mut capture = Vec::new();
+    for i in 0..args.warmup + args.clicks {
+        // Silence, and the capture delays meanwhile.
+        let quiet_until = Instant::now() + Duration::from_millis(args.gap_ms);
+        while let Ok(Ok(c)) = tokio::time::timeout_at(quiet_until.into(), heard.recv()).await {
+            if i >= args.warmup {
+                let now = interfaces::clock::system_now_ns();
+                capture.push((now - c.header.stamp_ns) as f64 / 1e6);
+            }
+        }
+        let t0 = Instant::now();
+        out.publish(&mut AudioChunk::mono(RATE_HZ, &click()))
+            .await?;
+        let deadline = t0 + Duration::from_secs(2);
+        while let Ok(Ok(c)) = tokio::time::timeout_at(deadline.into(), heard.recv()).await {
+            if c.samples()
+                .unwrap_or_default()
+                .iter()
+                .any(|s| s.abs() > LOUD)
+            {
+                if i >= args.warmup {
+                    trips.push(t0.elapsed().as_secs_f64() * 1000.0);
+                }
+                break;
+            }
+        }
+    }
+    let _ = stop.send(true);
+    let _ = running.await;
+    Ok((trips, capture))
+}
+
+#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+async fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let devices = pulse::devices(Some(&args.server))?;
+    eprintln!(
+        "sound server {}: {} clicks, one every {} ms",
+        devices.server, args.clicks, args.gap_ms
+    );
+    let for_floor = args.clone();
+    let mut direct = tokio::task::spawn_blocking(move || floor(&for_floor)).await??;
+    let (mut trips, mut capture) = through_robocog(&args).await?;
+    let missed = (args.clicks - trips.len()) + (args.clicks - direct.len());
+    let (rt50, rt99) = (percentile(&mut trips, 0.5), percentile(&mut trips, 0.99));
+    let (fl50, fl99) = (percentile(&mut direct, 0.5), percentile(&mut direct, 0.99));
+    let (cap50, cap99) = (
+        percentile(&mut capture, 0.5),
+        percentile(&mut capture, 0.99),
+    );
+    println!("| path | p50 ms | p99 ms |");
+    println!("|---|---:|---:|");
+    println!(
+        "| audio/out to audio/in through audio_io and the sound server | {rt50:.1} | {rt99:.1} |"
+    );
+    println!("| the same click through libpulse alone (the floor) | {fl50:.1} | {fl99:.1} |");
+    println!(
+        "| capture of a chunk's first sample to its arrival on audio/in | {cap50:.1} | {cap99:.1} |"
+    );
+    println!(
+        "round trip over the floor: x{:.2} at p50 (+{:.1} ms); {} clicks missed",
+        rt50 / fl50,
+        rt50 - fl50,
+        missed
+    );
+    println!(
+        "{}",
+        serde_json::json!({
+            "clicks": args.clicks,
+            "round_trip_p50_ms": round1(rt50),
+            "round_trip_p99_ms": round1(rt99),
+            "libpulse_round_trip_p50_ms": round1(fl50),
+            "libpulse_round_trip_p99_ms": round1(fl99),
+            "round_trip_p50_ratio_vs_libpulse": (rt50 / fl50 * 100.0).round() / 100.0,
+            "capture_to_bus_p50_ms": round1(cap50),
+            "capture_to_bus_p99_ms": round1(cap99),
+            "missed_clicks": missed,
+        })
+    );
+    anyhow::ensure!(missed == 0, "{missed} clicks never came back");
+    Ok(())
+}
+
+fn round1(x: f64) -> f64 {
+    (x * 10.0).round() / 10.0
+}

@@ -1,0 +1,32 @@
+//! # audio_io: the robot's microphone and speaker
+//!
+//! One process owns the sound devices. It captures the microphone into `audio/in` (16 kHz mono
+//! s16le by default, in 20 ms chunks), the topic the speech recognizer hears, and plays
+//! `audio/out`, the robot's voice from the speech generator, on the speaker. The devices are
+//! reached through a sound server ([`pulse`]: PulseAudio, or PipeWire's PulseAudio service),
+//! chosen by name; the server converts from and to whatever rate and channels the device runs
+//! at.
+//!
+//! - **Drivers** (`--driver`): `pulse`, the only one today. The simulated graphs have no
+//!   `audio_io`: the simulated person speaks onto `audio/in` herself, or into a sound server
+//!   (`loki_world --voice pulse`) that this component then captures.
+//! - **A missing device** at the start is a configuration error (exit 78, no restart) naming the
+//!   device and listing the ones the server has.
+//! - **A device lost while running** (unplugged, the server restarted) is logged and counted
+//!   (`microphone_lost`, `speaker_lost`), and opened again every `--reopen-s` until it is back.
+//!   A device that leaves the server does not fail the streams on it (the server moves them to
+//!   another device, which would put the wrong microphone in the game without a word), so the
+//!   named devices are looked for on the server every `--reopen-s` as well.
+//!   While the microphone is away, this component does not publish `audio/in` at all (its
+//!   publisher is withdrawn), so the dialog, which watches who writes `audio/in` when told to
+//!   (`dialogs --microphones audio_io`), says it cannot hear.
+//! - **Counted on `diagnostics`**: `capture_chunks`, `capture_overruns` (chunks dropped because
+//!   the bus fell behind the device), `playback_chunks`, `playback_underruns` (the speaker's
+//!   buffer ran dry in the middle of an utterance), `playback_malformed` (an `audio/out` chunk
+//!   with an odd byte count, no channels or no rate), `playback_dropped_device_lost`, `playback_dropped_queue_full`,
+//!   `playback_cut` (speech cut short by an interruption).
+//! - **Cutting the voice short**: when `speech/speaking` says an utterance was interrupted (the
+//!   player said "stop" over it), what is still queued in the server is dropped at once, not
+//!   played out.
+
+pub mod component;

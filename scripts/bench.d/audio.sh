@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# The audio path: a click on audio/out back on audio/in through audio_io and a sound server
+# (speaker to microphone), against the same click through libpulse alone (the floor), and the
+# capture-to-bus delay of the microphone's chunks. The sound server is a PulseAudio of this run's
+# own (system mode as root, an anonymous unix socket in the bench's folder): a null sink `room`
+# and a virtual source `mic` on its monitor. Extra arguments go to bench_audio (--clicks N).
+set -euo pipefail
+source "$(dirname "$0")/../lib.sh"
+need_voice_debs
+step "building bench_audio (release)"
+(cd "$ROOT" && cargo build --release -p audio_io --bin bench_audio)
+work="$CARGO_TARGET_DIR/bench/audio"
+rm -rf "$work"
+mkdir -p "$work"
+chmod 0777 "$work"
+cat >"$work/room.pa" <<PA
+load-module module-native-protocol-unix socket=$work/native auth-anonymous=1
+load-module module-null-sink sink_name=room rate=48000 channels=2
+load-module module-virtual-source source_name=mic master=room.monitor
+PA
+mode=()
+[ "$(id -u)" -eq 0 ] && mode=(--system)
+step "starting a sound server ($work/native)"
+PULSE_RUNTIME_PATH="$work/runtime" pulseaudio "${mode[@]}" --daemonize=no --use-pid-file=no \
+  --disallow-exit --exit-idle-time=-1 --log-target=stderr -n -F "$work/room.pa" \
+  2>"$work/server.log" &
+server=$!
+trap 'kill "$server" 2>/dev/null || true; wait "$server" 2>/dev/null || true' EXIT
+for _ in $(seq 1 100); do
+  pactl --server "unix:$work/native" info >/dev/null 2>&1 && break
+  sleep 0.1
+done
+pactl --server "unix:$work/native" info >/dev/null || { cat "$work/server.log" >&2; exit 1; }
+step "running bench_audio"
+"$BIN/bench_audio" --server "unix:$work/native" "$@"
