@@ -124,6 +124,10 @@ pub struct Recognizer {
     decoded: u64,
     /// The utterance being decoded while it is spoken.
     live: Option<Live>,
+    /// A microphone's constant offset, removed before anything else looks at the audio.
+    dc: audio::signal::DcRemover,
+    /// The audio without it (reused).
+    centred: Vec<i16>,
 }
 
 /// An utterance under way, fed to both searches as it arrives (see [`Recognizer::push`]).
@@ -246,6 +250,8 @@ impl Recognizer {
             cfg,
             decoded: 0,
             live: None,
+            dc: audio::signal::DcRemover::default(),
+            centred: Vec::new(),
         })
     }
 
@@ -270,6 +276,15 @@ impl Recognizer {
     /// arrive (incremental decoding), so when it ends only the rest of the search remains. The
     /// first utterance after start is decoded whole instead (see [`Recognizer::decode_segment`]).
     pub fn push(&mut self, samples: &[i16]) -> Result<Vec<Recognized>, RecognizerError> {
+        let mut centred = std::mem::take(&mut self.centred);
+        self.dc.process(samples, &mut centred);
+        let out = self.push_centred(&centred);
+        self.centred = centred;
+        out
+    }
+
+    /// [`Recognizer::push`] after the offset is removed.
+    fn push_centred(&mut self, samples: &[i16]) -> Result<Vec<Recognized>, RecognizerError> {
         let segs = self.vad.push(samples);
         let mut out = Vec::with_capacity(segs.len());
         for seg in segs {

@@ -312,6 +312,65 @@ fn bad_input_is_handled() {
     assert!((0.0..=1.0).contains(&r.confidence));
 }
 
+/// A microphone with a constant offset (+3000, -21 dBFS) still gives the commands, whether the
+/// person is far from it (her speech at -40 dBFS, well under the offset) or so close that it
+/// clips (1 % of the samples at full scale): the offset is removed before the end-pointer and
+/// the decoder see the audio.
+#[test]
+fn an_offset_and_clipping_microphone_is_still_understood() {
+    const OFFSET: i16 = 3000;
+    let v = voice("en-us", 160, 50);
+    let commands = [
+        Command::Greet,
+        Command::TouchBall,
+        Command::Stop,
+        Command::TrackBall,
+    ];
+    for far in [true, false] {
+        let mut rec = recognizer(Game::Touch);
+        let mut stream = Vec::new();
+        for (i, c) in commands.into_iter().enumerate() {
+            let s = spoken(c.phrase(), &v, 20.0, 40 + i as u64);
+            let gain = if far {
+                // Speech at -40 dBFS.
+                let db = 10.0 * audio::signal::active_power(&s).max(1e-12).log10();
+                10f64.powf((-40.0 - db) / 20.0)
+            } else {
+                // The gain at which 1 % of the samples clip, once the offset is added.
+                let mut mags: Vec<u16> = s.iter().map(|x| x.unsigned_abs()).collect();
+                mags.sort_unstable();
+                f64::from(32767 - OFFSET) / f64::from(mags[mags.len() * 99 / 100].max(1))
+            };
+            let loud = gain_clipped(&s, gain);
+            if !far {
+                let clipped = loud.iter().filter(|x| x.unsigned_abs() >= 28_700).count();
+                assert!(
+                    clipped * 200 >= loud.len(),
+                    "{clipped} of {} clip",
+                    loud.len()
+                );
+            }
+            stream.extend(loud.iter().map(|&x| x.saturating_add(OFFSET)));
+        }
+        let mut got = Vec::new();
+        for chunk in stream.chunks(320) {
+            got.extend(rec.push(chunk).unwrap());
+        }
+        got.extend(rec.flush().unwrap());
+        let heard: Vec<Command> = got.iter().map(|r| r.command).collect();
+        // The first utterance warms the decoder up (see `Recognizer::decode_segment`): the rest
+        // must all be right.
+        assert_eq!(
+            &heard[heard.len().saturating_sub(3)..],
+            &commands[1..],
+            "far: {far}: {:?}",
+            got.iter()
+                .map(|r| (r.text.clone(), (r.confidence * 100.0).round()))
+                .collect::<Vec<_>>()
+        );
+    }
+}
+
 /// Decoding while the person speaks (audio in 20 ms chunks, as from the bus) gives the same
 /// commands as decoding each utterance once it was cut, and the searches keep up: after the
 /// end-pointer's cut only the end of the search remains.

@@ -215,3 +215,76 @@ mod tests {
         assert_eq!(c, vec![32767, -32768, 400]);
     }
 }
+
+/// Removes a constant offset (DC) from a stream, as a cheap microphone or sound card adds: a
+/// running mean with a time constant of a quarter second (a first-order high-pass below 1 Hz,
+/// far under speech) is subtracted once it is large enough to matter (at least
+/// [`DcRemover::MIN_OFFSET`], -54 dBFS). A stream with no offset passes unchanged, sample for
+/// sample, so its digital silence stays exact zeros.
+#[derive(Debug, Clone, Default)]
+pub struct DcRemover {
+    mean: f64,
+}
+
+impl DcRemover {
+    /// Time constant of the running mean (samples at 16 kHz: 0.25 s).
+    pub const TAU_SAMPLES: f64 = 4000.0;
+    /// The smallest offset removed (in sample units).
+    pub const MIN_OFFSET: f64 = 64.0;
+
+    /// `samples` without their offset, appended to `out` (cleared first).
+    pub fn process(&mut self, samples: &[i16], out: &mut Vec<i16>) {
+        out.clear();
+        out.reserve(samples.len());
+        for &s in samples {
+            self.mean += (f64::from(s) - self.mean) / Self::TAU_SAMPLES;
+            out.push(if self.mean.abs() < Self::MIN_OFFSET {
+                s
+            } else {
+                (f64::from(s) - self.mean).round().clamp(-32768.0, 32767.0) as i16
+            });
+        }
+    }
+
+    /// The offset it currently removes (sample units; 0 below [`DcRemover::MIN_OFFSET`]).
+    pub fn offset(&self) -> f64 {
+        if self.mean.abs() < Self::MIN_OFFSET {
+            0.0
+        } else {
+            self.mean
+        }
+    }
+}
+
+#[cfg(test)]
+mod dc_tests {
+    use super::*;
+
+    #[test]
+    fn an_offset_is_removed_and_a_clean_stream_is_untouched() {
+        let tone: Vec<i16> = (0..32_000)
+            .map(|i| {
+                (3000.0 * (i as f64 * 2.0 * std::f64::consts::PI * 200.0 / 16_000.0).sin()) as i16
+            })
+            .collect();
+        let mut dc = DcRemover::default();
+        let mut out = Vec::new();
+        dc.process(&tone, &mut out);
+        assert_eq!(out, tone, "no offset: unchanged");
+        let silence = vec![0i16; 1600];
+        dc.process(&silence, &mut out);
+        assert!(out.iter().all(|&s| s == 0), "digital silence stays zeros");
+
+        let offset: Vec<i16> = tone.iter().map(|&s| s + 4000).collect();
+        let mut dc = DcRemover::default();
+        dc.process(&offset, &mut out);
+        // After a second (four time constants) the mean of the output is near zero and the tone
+        // is intact.
+        let tail = &out[16_000..];
+        let mean = tail.iter().map(|&s| f64::from(s)).sum::<f64>() / tail.len() as f64;
+        assert!(mean.abs() < 100.0, "mean {mean}");
+        let peak = tail.iter().map(|&s| s.abs()).max().unwrap_or(0);
+        assert!((2800..=3300).contains(&peak), "peak {peak}");
+        assert!((dc.offset() - 4000.0).abs() < 100.0, "{}", dc.offset());
+    }
+}

@@ -51,7 +51,7 @@ const BUFFER: Duration = Duration::from_millis(200);
 /// 20 ms capture chunks, as `audio_io`'s default.
 const CHUNK_FRAMES: usize = 320;
 /// A sample louder than this is the click (the room is otherwise digital silence).
-const LOUD: i16 = 4000;
+const LOUD: u16 = 4000;
 
 /// A 100 ms chunk starting with a 5 ms click.
 fn click() -> Vec<i16> {
@@ -87,7 +87,9 @@ fn floor(args: &Args) -> anyhow::Result<Vec<f64>> {
             while !stopped.load(std::sync::atomic::Ordering::Relaxed)
                 && capture.read(&mut buf).is_ok()
             {
-                if buf.iter().any(|s| s.abs() > LOUD) && tx.try_send(Instant::now()).is_err() {
+                if buf.iter().any(|s| s.unsigned_abs() > LOUD)
+                    && tx.try_send(Instant::now()).is_err()
+                {
                     return;
                 }
             }
@@ -160,7 +162,7 @@ async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
             if c.samples()
                 .unwrap_or_default()
                 .iter()
-                .any(|s| s.abs() > LOUD)
+                .any(|s| s.unsigned_abs() > LOUD)
             {
                 if i >= args.warmup {
                     trips.push(t0.elapsed().as_secs_f64() * 1000.0);
