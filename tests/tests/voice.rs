@@ -259,12 +259,7 @@ async fn the_generator_speaks_and_an_urgent_request_interrupts() {
 
 /// The speech components with the robot's microphone and speaker (`audio_io`) on a sound server
 /// of the test's own: the room is its null sink, the microphone a virtual source on the room's
-/// monitor.
-fn sound_manifest(server: &SoundServer) -> String {
-    sound_manifest_with(server, "")
-}
-
-/// [`sound_manifest`] with the dialog watching the components `microphones` (`--microphones`).
+/// monitor. The dialog watches the components `microphones` (`--microphones`; empty: none).
 fn sound_manifest_with(server: &SoundServer, microphones: &str) -> String {
     format!(
         r#"
@@ -300,6 +295,29 @@ depends_on = ["speech_recognition"]
     )
 }
 
+/// A sound server, the speech graph with `audio_io` on it (the dialog watching `microphones`),
+/// up, and a bus of the test's own on it; and the test's scratch folder.
+async fn sound_graph(
+    tag: &str,
+    microphones: &str,
+) -> (SoundServer, Launch, Bus, std::path::PathBuf) {
+    let server = SoundServer::start(tag);
+    let ns = unique_namespace(tag);
+    let dir = scratch(&ns);
+    let m = dir.join("sound.toml");
+    std::fs::write(&m, sound_manifest_with(&server, microphones)).unwrap();
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("audio_io up", Duration::from_secs(60), |l| {
+            l.contains("audio_io is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-sound")
+        .await
+        .unwrap();
+    (server, launch, bus, dir)
+}
+
 /// The first and the last 20 ms frame of a 16 kHz s16le recording that hold sound (RMS above
 /// `threshold`), in seconds from its start.
 fn sound_span(pcm: &[u8], threshold: f64) -> Option<(f64, f64)> {
@@ -327,20 +345,7 @@ fn sound_span(pcm: &[u8], threshold: f64) -> Option<(f64, f64)> {
 /// command, even though the sentence is made of commands.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robots_voice_is_played_into_the_room_and_not_taken_for_a_command() {
-    let server = SoundServer::start("voice");
-    let ns = unique_namespace("sound");
-    let dir = scratch(&ns);
-    let m = dir.join("sound.toml");
-    std::fs::write(&m, sound_manifest(&server)).unwrap();
-    let launch = Launch::start(&m, &ns, &[]);
-    launch
-        .lines
-        .wait_for("audio_io up", Duration::from_secs(60), |l| {
-            l.contains("audio_io is up")
-        });
-    let bus = Bus::open(&launch.connect_args(), "test-sound")
-        .await
-        .unwrap();
+    let (server, launch, bus, dir) = sound_graph("sound", "").await;
     let commands = bus.subscriber(&topics::GAME_COMMAND).await.unwrap();
     let utterances = bus.subscriber(&topics::SPEECH_UTTERANCE).await.unwrap();
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await.unwrap();
@@ -498,20 +503,7 @@ fn a_microphone_that_is_not_there_is_named_with_the_ones_there_are() {
 /// is opened again and the robot says so.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_microphone_lost_mid_game_is_said_and_opened_again_when_it_is_back() {
-    let server = SoundServer::start("lost");
-    let ns = unique_namespace("lostmic");
-    let dir = scratch(&ns);
-    let m = dir.join("sound.toml");
-    std::fs::write(&m, sound_manifest_with(&server, "audio_io")).unwrap();
-    let launch = Launch::start(&m, &ns, &[]);
-    launch
-        .lines
-        .wait_for("audio_io up", Duration::from_secs(60), |l| {
-            l.contains("audio_io is up")
-        });
-    let bus = Bus::open(&launch.connect_args(), "test-sound")
-        .await
-        .unwrap();
+    let (server, launch, bus, _) = sound_graph("lostmic", "audio_io").await;
     let said = bus.subscriber(&topics::SPEECH_SAY).await.unwrap();
     let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
     // The dialog has seen the recognizer and the microphone (it says nothing until it has).

@@ -326,25 +326,80 @@ fn to_bytes(samples: &[i16], out: &mut Vec<u8>) {
     out.extend(samples.iter().flat_map(|s| s.to_le_bytes()));
 }
 
-/// A capture stream: s16le PCM from one source, read in chunks of a fixed number of frames.
-pub struct Capture {
-    stream: Simple,
+/// One open stream of either direction, and what it was opened on.
+struct Stream {
+    simple: Simple,
+    kind: Kind,
     device: String,
     rate_hz: u32,
     channels: u8,
-    chunk_frames: usize,
-    bytes: Vec<u8>,
 }
 
-impl std::fmt::Debug for Capture {
+impl std::fmt::Debug for Stream {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Capture")
+        f.debug_struct("Stream")
+            .field("kind", &self.kind)
             .field("device", &self.device)
             .field("rate_hz", &self.rate_hz)
             .field("channels", &self.channels)
-            .field("chunk_frames", &self.chunk_frames)
             .finish()
     }
+}
+
+impl Stream {
+    fn open(
+        server: Option<&str>,
+        kind: Kind,
+        device: &str,
+        rate_hz: u32,
+        channels: u8,
+        attr: &BufferAttr,
+        stream_name: &str,
+    ) -> Result<Self, Error> {
+        let spec = spec(rate_hz, channels)?;
+        let direction = match kind {
+            Kind::Source => Direction::Record,
+            Kind::Sink => Direction::Playback,
+        };
+        let simple = Simple::new(
+            server,
+            "robocog",
+            direction,
+            Some(device),
+            stream_name,
+            &spec,
+            None,
+            Some(attr),
+        )
+        .map_err(|e| open_error(server, kind, device, e))?;
+        Ok(Self {
+            simple,
+            kind,
+            device: device.to_string(),
+            rate_hz,
+            channels,
+        })
+    }
+
+    fn failed(&self, e: PAErr) -> Error {
+        Error::Stream {
+            kind: self.kind,
+            device: self.device.clone(),
+            reason: describe(e),
+        }
+    }
+
+    fn latency_us(&self) -> Option<u64> {
+        self.simple.get_latency().ok().map(|l| l.0)
+    }
+}
+
+/// A capture stream: s16le PCM from one source, read in chunks of a fixed number of frames.
+#[derive(Debug)]
+pub struct Capture {
+    stream: Stream,
+    chunk_frames: usize,
+    bytes: Vec<u8>,
 }
 
 impl Capture {
@@ -358,7 +413,6 @@ impl Capture {
         chunk_frames: usize,
         stream_name: &str,
     ) -> Result<Self, Error> {
-        let spec = spec(rate_hz, channels)?;
         if chunk_frames == 0 {
             return Err(Error::Invalid {
                 what: "chunk".into(),
@@ -373,22 +427,17 @@ impl Capture {
             minreq: u32::MAX,
             fragsize: u32::try_from(chunk_bytes).unwrap_or(u32::MAX),
         };
-        let stream = Simple::new(
+        let stream = Stream::open(
             server,
-            "robocog",
-            Direction::Record,
-            Some(source),
-            stream_name,
-            &spec,
-            None,
-            Some(&attr),
-        )
-        .map_err(|e| open_error(server, Kind::Source, source, e))?;
-        Ok(Self {
-            stream,
-            device: source.to_string(),
+            Kind::Source,
+            source,
             rate_hz,
             channels,
+            &attr,
+            stream_name,
+        )?;
+        Ok(Self {
+            stream,
             chunk_frames,
             bytes: vec![0; chunk_bytes],
         })
@@ -396,9 +445,9 @@ impl Capture {
 
     /// The next chunk, interleaved, blocking until it is complete.
     pub fn read(&mut self, out: &mut Vec<i16>) -> Result<(), Error> {
-        self.stream
-            .read(&mut self.bytes)
-            .map_err(|e| self.failed(e))?;
+        if let Err(e) = self.stream.simple.read(&mut self.bytes) {
+            return Err(self.stream.failed(e));
+        }
         out.clear();
         out.extend(
             self.bytes
@@ -410,53 +459,34 @@ impl Capture {
 
     /// How long the audio waits between the device and this reader (µs), when the server says.
     pub fn latency_us(&self) -> Option<u64> {
-        self.stream.get_latency().ok().map(|l| l.0)
+        self.stream.latency_us()
     }
 
     pub fn rate_hz(&self) -> u32 {
-        self.rate_hz
+        self.stream.rate_hz
     }
     pub fn channels(&self) -> u8 {
-        self.channels
+        self.stream.channels
     }
     pub fn chunk_frames(&self) -> usize {
         self.chunk_frames
     }
     pub fn device(&self) -> &str {
-        &self.device
-    }
-
-    fn failed(&self, e: PAErr) -> Error {
-        Error::Stream {
-            kind: Kind::Source,
-            device: self.device.clone(),
-            reason: describe(e),
-        }
+        &self.stream.device
     }
 }
 
 /// A playback stream: s16le PCM to one sink.
+#[derive(Debug)]
 pub struct Playback {
-    stream: Simple,
-    device: String,
-    rate_hz: u32,
-    channels: u8,
+    stream: Stream,
     bytes: Vec<u8>,
-}
-
-impl std::fmt::Debug for Playback {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Playback")
-            .field("device", &self.device)
-            .field("rate_hz", &self.rate_hz)
-            .field("channels", &self.channels)
-            .finish()
-    }
 }
 
 impl Playback {
     /// Open `sink` on the server at `server` for PCM at `rate_hz` with `channels`, the server
-    /// keeping about `buffer` of it queued (the longest that [`Playback::flush`] cuts).
+    /// keeping about `buffer` of it queued (the longest that [`Playback::flush`] cuts). The
+    /// server starts playing once it holds that much.
     pub fn open(
         server: Option<&str>,
         sink: &str,
@@ -465,7 +495,6 @@ impl Playback {
         buffer: Duration,
         stream_name: &str,
     ) -> Result<Self, Error> {
-        let spec = spec(rate_hz, channels)?;
         let frames = (buffer.as_secs_f64() * rate_hz as f64).ceil().max(1.0) as usize;
         let target = u32::try_from(frames * 2 * channels as usize).unwrap_or(u32::MAX);
         let attr = BufferAttr {
@@ -475,22 +504,17 @@ impl Playback {
             minreq: u32::MAX,
             fragsize: u32::MAX,
         };
-        let stream = Simple::new(
+        let stream = Stream::open(
             server,
-            "robocog",
-            Direction::Playback,
-            Some(sink),
-            stream_name,
-            &spec,
-            None,
-            Some(&attr),
-        )
-        .map_err(|e| open_error(server, Kind::Sink, sink, e))?;
-        Ok(Self {
-            stream,
-            device: sink.to_string(),
+            Kind::Sink,
+            sink,
             rate_hz,
             channels,
+            &attr,
+            stream_name,
+        )?;
+        Ok(Self {
+            stream,
             bytes: Vec::new(),
         })
     }
@@ -498,40 +522,41 @@ impl Playback {
     /// Queue interleaved samples, blocking while the server's buffer is full.
     pub fn write(&mut self, samples: &[i16]) -> Result<(), Error> {
         to_bytes(samples, &mut self.bytes);
-        self.stream.write(&self.bytes).map_err(|e| self.failed(e))
+        self.stream
+            .simple
+            .write(&self.bytes)
+            .map_err(|e| self.stream.failed(e))
     }
 
     /// Drop what is queued and not yet played.
     pub fn flush(&mut self) -> Result<(), Error> {
-        self.stream.flush().map_err(|e| self.failed(e))
+        self.stream
+            .simple
+            .flush()
+            .map_err(|e| self.stream.failed(e))
     }
 
     /// Block until what is queued has played.
     pub fn drain(&mut self) -> Result<(), Error> {
-        self.stream.drain().map_err(|e| self.failed(e))
+        self.stream
+            .simple
+            .drain()
+            .map_err(|e| self.stream.failed(e))
     }
 
     /// How long a sample written now waits before it is heard (µs), when the server says.
     pub fn latency_us(&self) -> Option<u64> {
-        self.stream.get_latency().ok().map(|l| l.0)
+        self.stream.latency_us()
     }
 
     pub fn rate_hz(&self) -> u32 {
-        self.rate_hz
+        self.stream.rate_hz
     }
     pub fn channels(&self) -> u8 {
-        self.channels
+        self.stream.channels
     }
     pub fn device(&self) -> &str {
-        &self.device
-    }
-
-    fn failed(&self, e: PAErr) -> Error {
-        Error::Stream {
-            kind: Kind::Sink,
-            device: self.device.clone(),
-            reason: describe(e),
-        }
+        &self.stream.device
     }
 }
 
