@@ -510,6 +510,7 @@ mod tests {
         let c = config(&["--driver", "dynamixel"]);
         let e = open(&c, specs).err().unwrap().to_string();
         assert!(e.contains("--servo-config"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
