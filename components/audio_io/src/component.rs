@@ -229,6 +229,8 @@ enum Play {
     Chunk(AudioChunk),
     /// Drop what is queued: the utterance was interrupted.
     Cut,
+    /// The generator sent the last chunk of its sentence (what comes next starts another).
+    SentenceEnded,
 }
 
 /// Capture and play until `shutdown`.
@@ -354,9 +356,13 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     Ok(e) => e,
                     Err(e) => break Err(e.into()),
                 };
-                if event.state == SpeakingState::Interrupted
-                    && let Some(tx) = &play_tx
-                    && let Err(std::sync::mpsc::TrySendError::Disconnected(_)) = tx.try_send(Play::Cut)
+                let tell = match event.state {
+                    SpeakingState::Interrupted => Some(Play::Cut),
+                    SpeakingState::Finished | SpeakingState::Failed => Some(Play::SentenceEnded),
+                    _ => None,
+                };
+                if let (Some(tell), Some(tx)) = (tell, &play_tx)
+                    && let Err(std::sync::mpsc::TrySendError::Disconnected(_)) = tx.try_send(tell)
                 {
                     break Err(anyhow::anyhow!("the playback thread ended"));
                 }
@@ -477,11 +483,10 @@ struct Speaker {
     /// When what was written so far has played (this thread's count, without the device's own
     /// latency); `None` before the first chunk and after a cut.
     queued_until: Option<Instant>,
+    /// Whether a sentence is under way (a chunk written, and the generator has not said it
+    /// ended): a chunk of it that finds the queue empty came too late, an under-run.
+    in_sentence: bool,
 }
-
-/// A chunk that comes at most this long after the speaker ran dry continues a sentence that
-/// came late (an under-run); one that comes later starts a new one.
-const LATE: Duration = Duration::from_millis(30);
 
 /// Play what the bus loop sends until it hangs up.
 ///
@@ -518,10 +523,16 @@ fn playback_loop(
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
         };
         match cmd {
+            Play::SentenceEnded => {
+                if let Some(s) = speaker.as_mut() {
+                    s.in_sentence = false;
+                }
+            }
             Play::Cut => {
                 if let Some(s) = speaker.as_mut()
                     && s.queued_until.take().is_some()
                 {
+                    s.in_sentence = false;
                     counters.incr("playback_cut");
                     if let Err(e) = s.stream.flush() {
                         speaker_failed(config, counters, &mut speaker, &mut lost, &e);
@@ -572,6 +583,7 @@ fn playback_loop(
                             speaker = Some(Speaker {
                                 stream,
                                 queued_until: None,
+                                in_sentence: false,
                             });
                         }
                         Err(e) => {
@@ -596,9 +608,10 @@ fn playback_loop(
                 let duration = Duration::from_secs_f64(chunk.duration_s());
                 let written = match s.queued_until {
                     Some(until) if until > now => s.stream.write(&samples).map(|()| until),
-                    dry => {
-                        if dry.is_some_and(|until| now - until <= LATE) {
+                    _ => {
+                        if s.in_sentence {
                             counters.incr("playback_underruns");
+                            tracing::debug!("the speaker ran dry in the middle of a sentence");
                         }
                         // A sentence starts: silence first, up to the server's start threshold.
                         let pad = buffer.saturating_sub(duration);
@@ -612,6 +625,7 @@ fn playback_loop(
                     Ok(from) => {
                         counters.incr("playback_chunks");
                         s.queued_until = Some(from + duration);
+                        s.in_sentence = true;
                     }
                     Err(e) => {
                         speaker_failed(config, counters, &mut speaker, &mut lost, &e);

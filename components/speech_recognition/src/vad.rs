@@ -98,6 +98,8 @@ pub struct Vad {
     history: VecDeque<Vec<i16>>,
     levels: VecDeque<f64>,
     floor_db: Option<f64>,
+    /// Whether the stream began with digital silence (before any floor was set).
+    silence_first: bool,
     loud_run: usize,
     open: Option<Open>,
     /// Stream position of the first sample of `pending`.
@@ -105,6 +107,12 @@ pub struct Vad {
     /// Utterances dropped as too short.
     pub dropped_short: u64,
 }
+
+/// The level of a frame of digital silence (exact zeros), in dBFS.
+const SILENCE_DBFS: f64 = -100.0;
+/// The loudest first frame after digital silence still taken for the room's noise (dBFS); a
+/// louder one is a sound.
+const QUIET_ROOM_DBFS: f64 = -40.0;
 
 /// Power of a frame in dBFS (−100 for digital silence).
 pub fn level_dbfs(frame: &[i16]) -> f64 {
@@ -130,6 +138,7 @@ impl Vad {
             history: VecDeque::new(),
             levels: VecDeque::new(),
             floor_db: None,
+            silence_first: false,
             loud_run: 0,
             open: None,
             pos: 0,
@@ -223,16 +232,34 @@ impl Vad {
                 .sum::<f64>()
                 / self.levels.len() as f64)
                 .log10();
-        let floor = *self.floor_db.get_or_insert(raw);
+        // Digital silence (exact zeros: a stream that has not started, a muted source, an empty
+        // virtual room) is no measure of the room's noise: it never lowers the floor. A stream
+        // that starts with it gets its floor from the first frame that is not silent when that
+        // one is as quiet as a room (below QUIET_ROOM_DBFS); a louder one is a sound, heard
+        // against silence. A stream that starts with sound sets the floor from it, as before
+        // (it falls at once to the first quieter frame).
+        let silent = raw <= SILENCE_DBFS;
+        if silent && self.floor_db.is_none() {
+            self.silence_first = true;
+        }
+        let floor = match self.floor_db {
+            Some(f) => f,
+            None if !silent && (raw < QUIET_ROOM_DBFS || !self.silence_first) => raw,
+            None => SILENCE_DBFS,
+        };
         let rise = self.cfg.floor_rise_db_per_s * FRAME as f64 / RATE_HZ as f64;
-        let new_floor = if raw < floor {
+        let new_floor = if silent {
+            floor
+        } else if raw < floor {
             raw
         } else if self.open.is_some() {
             floor + rise * 0.25
         } else {
             floor + rise
         };
-        self.floor_db = Some(new_floor);
+        if !(silent && self.floor_db.is_none()) {
+            self.floor_db = Some(new_floor);
+        }
         let above = level - floor;
         let loud = level > self.cfg.min_level_dbfs && above >= self.cfg.start_db;
         let still_loud =
@@ -338,6 +365,33 @@ mod tests {
         assert_eq!(a.samples.len() as u64, a.end_sample - a.start_sample);
         assert!(!a.forced);
         // The floor tracks the noise (-50 dBFS).
+        let floor = vad.floor_dbfs().unwrap();
+        assert!((floor + 50.0).abs() < 3.0, "{floor}");
+    }
+
+    /// A microphone that starts in digital silence (a sound server's empty room, a source not
+    /// started yet) and then hears the room: the room's noise is its floor, not an utterance
+    /// that never ends; a burst in it is one utterance, with its times.
+    #[test]
+    fn the_room_after_digital_silence_is_the_floor_not_speech() {
+        let mut stream = vec![0i16; 16000]; // 1 s of exact zeros
+        let mut room = vec![0i16; 32000]; // 2 s of room
+        room.extend(burst(0.8, 6000.0)); // 3.0 .. 3.8 s
+        room.extend(vec![0i16; 16000]);
+        stream.extend(with_noise(room, 1e-5, 3)); // -50 dBFS noise
+        stream.extend(vec![0i16; 8000]); // silence again: the floor stays
+        stream.extend(with_noise(vec![0i16; 16000], 1e-5, 4));
+        let mut vad = Vad::new(VadConfig::default());
+        let mut segs = vec![];
+        for c in stream.chunks(320) {
+            segs.extend(vad.push(c));
+        }
+        assert!(vad.flush().is_none());
+        assert_eq!(segs.len(), 1, "{segs:?}");
+        let a = &segs[0];
+        assert!(!a.forced);
+        assert!(a.start_s() > 2.7 && a.start_s() < 3.0, "{}", a.start_s());
+        assert!(a.end_s() > 3.8 && a.end_s() < 4.1, "{}", a.end_s());
         let floor = vad.floor_dbfs().unwrap();
         assert!((floor + 50.0).abs() < 3.0, "{floor}");
     }
