@@ -7,11 +7,13 @@
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 need_voice_debs
-step "building bench_audio (release)"
-(cd "$ROOT" && cargo build --release -p audio_io --bin bench_audio)
-work="$CARGO_TARGET_DIR/bench/audio"
-rm -rf "$work"
-mkdir -p "$work"
+# The workspace's build (what scripts/test builds, so its cache serves): a build of audio_io
+# alone would resolve its dependencies' features apart and build them all again.
+step "building bench_audio (release, with the workspace's binaries)"
+(cd "$ROOT" && cargo build --release --workspace --bins)
+# The server drops to its own user: its folder is a temporary one it can reach (not under a
+# home folder), removed at the end.
+work=$(mktemp -d "${TMPDIR:-/tmp}/robocog-bench-audio.XXXXXX")
 chmod 0777 "$work"
 cat >"$work/room.pa" <<PA
 load-module module-native-protocol-unix socket=$work/native auth-anonymous=1
@@ -25,7 +27,7 @@ PULSE_RUNTIME_PATH="$work/runtime" pulseaudio "${mode[@]}" --daemonize=no --use-
   --disallow-exit --exit-idle-time=-1 --log-target=stderr -n -F "$work/room.pa" \
   2>"$work/server.log" &
 server=$!
-trap 'kill "$server" 2>/dev/null || true; wait "$server" 2>/dev/null || true' EXIT
+trap 'kill "$server" 2>/dev/null || true; wait "$server" 2>/dev/null || true; rm -rf "$work"' EXIT
 for _ in $(seq 1 100); do
   pactl --server "unix:$work/native" info >/dev/null 2>&1 && break
   sleep 0.1
