@@ -76,7 +76,8 @@ pub struct AudioIo;
 
 impl Component for AudioIo {
     const NAME: &'static str = "audio_io";
-    const ABOUT: &'static str = "The robot's microphone onto audio/in and its voice (audio/out) onto the speaker, through a sound server.";
+    const ABOUT: &'static str = "The robot's microphone onto audio/in and its voice (audio/out) \
+        onto the speaker, through a sound server.";
     type Config = Config;
     type Prepared = Prepared;
 

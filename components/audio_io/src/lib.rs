@@ -23,8 +23,8 @@
 //! - **Counted on `diagnostics`**: `capture_chunks`, `capture_overruns` (chunks dropped because
 //!   the bus fell behind the device), `playback_chunks`, `playback_underruns` (the speaker's
 //!   buffer ran dry in the middle of an utterance), `playback_malformed` (an `audio/out` chunk
-//!   with an odd byte count, no channels or no rate), `playback_dropped_device_lost`, `playback_dropped_queue_full`,
-//!   `playback_cut` (speech cut short by an interruption).
+//!   with an odd byte count, no channels or no rate), `playback_dropped_device_lost`,
+//!   `playback_dropped_queue_full`, `playback_cut` (speech cut short by an interruption).
 //! - **Cutting the voice short**: when `speech/speaking` says an utterance was interrupted (the
 //!   player said "stop" over it), what is still queued in the server is dropped at once, not
 //!   played out.
