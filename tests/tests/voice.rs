@@ -351,11 +351,20 @@ async fn the_robots_voice_is_played_into_the_room_and_not_taken_for_a_command() 
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await.unwrap();
     let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
     let say = bus.publisher(&topics::SPEECH_SAY).await.unwrap();
+    let out = bus.publisher(&topics::AUDIO_OUT).await.unwrap();
     // The room as a second microphone would hear it.
     let room = dir.join("room.raw");
     let mut recorder = server.record("room.monitor", &room);
     // The recognizer hears the silent room for a moment first (it settles its noise floor).
     tokio::time::sleep(Duration::from_secs(2)).await;
+    // Two malformed chunks for the speaker (an odd byte count; no channels): counted, not
+    // played.
+    let mut odd = AudioChunk::mono(16000, &[100; 160]);
+    odd.pcm_s16le.pop();
+    out.publish(&mut odd).await.unwrap();
+    let mut none = AudioChunk::mono(16000, &[100; 160]);
+    none.channels = 0;
+    out.publish(&mut none).await.unwrap();
 
     let text = "Let's play. Touch the ball. Touch the ball now.";
     say.publish(&mut SayRequest {
@@ -456,6 +465,7 @@ async fn the_robots_voice_is_played_into_the_room_and_not_taken_for_a_command() 
         );
     }
     assert_eq!(d.get("capture_overruns"), 0, "{d:?}");
+    assert_eq!(d.get("playback_malformed"), 2, "{d:?}");
 }
 
 /// A microphone the sound server does not have: audio_io says which devices there are, exits
