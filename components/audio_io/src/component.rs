@@ -418,7 +418,7 @@ fn capture_loop(
             Ok(()) => {
                 counters.incr("capture_chunks");
                 let latency = capture.latency_us().unwrap_or(0);
-                match tx.try_send(Heard::Chunk(samples.clone(), latency)) {
+                match tx.try_send(Heard::Chunk(std::mem::take(&mut samples), latency)) {
                     Ok(()) => {}
                     Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
                         counters.incr("capture_overruns");
