@@ -3,7 +3,8 @@
 //! Not a process: the speech generator, the speech recognizer (and its adaptation tools), the
 //! simulated person of `loki_world` and the benchmarks share it.
 //! - [`wav`]: reading and writing PCM WAV files ([`wav::Pcm`]).
-//! - [`signal`]: resampling, mono mixdown helpers, noise of several colours, SNR mixing, power.
+//! - [`signal`]: resampling, mono mixdown helpers, noise of several colours (and a fan), babble
+//!   of other talkers, reverberant rooms, SNR mixing, power.
 //! - [`synth`]: speech synthesis with the espeak-ng program, at its rate or at 16 kHz.
 
 pub mod signal;

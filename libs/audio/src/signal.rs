@@ -1,5 +1,8 @@
-//! Signal helpers on mono signed 16-bit PCM: resampling, power, noise, mixing at a chosen
-//! signal-to-noise ratio, gain with clipping.
+//! Signal helpers on mono signed 16-bit PCM: resampling, power, noise (white, brown, fan), babble
+//! of competing talkers, mixing at a chosen signal-to-noise ratio, reverberation by a synthetic
+//! room impulse response, gain with clipping, DC removal.
+//!
+//! Fan noise, babble, mixing and the room simulation assume 16 kHz.
 //!
 //! Power is the mean of squared samples in full-scale units (a sample of 32768 is 1.0); SNR in dB
 //! is `10 log10(P_speech / P_noise)`, with `P_speech` measured over the whole speech signal given.
@@ -100,23 +103,27 @@ pub enum NoiseKind {
     White,
     /// Low-passed (one-pole, 0.95) white noise: a rumble like a fan or a crowd's murmur.
     Brown,
+    /// A ventilation or computer fan: white noise low-passed (2-pole, 400-700 Hz) with a weaker
+    /// flat part, plus a blade-pass tone (90-180 Hz) and its 2nd to 4th harmonics whose level
+    /// wobbles by 4 % at about 1 Hz. Cut-off, tone, wobble and phases come from the generator.
+    Fan,
 }
 
 /// `n` samples of noise with power `power_fs` (full-scale units).
 pub fn noise(n: usize, kind: NoiseKind, power_fs: f64, rng: &mut NoiseRng) -> Vec<f64> {
-    let mut v: Vec<f64> = Vec::with_capacity(n);
-    let mut y = 0.0;
-    for _ in 0..n {
-        let g = rng.gaussian();
-        let x = match kind {
-            NoiseKind::White => g,
-            NoiseKind::Brown => {
-                y = 0.95 * y + g;
-                y
-            }
-        };
-        v.push(x);
-    }
+    let v: Vec<f64> = match kind {
+        NoiseKind::White => (0..n).map(|_| rng.gaussian()).collect(),
+        NoiseKind::Brown => {
+            let mut y = 0.0;
+            (0..n)
+                .map(|_| {
+                    y = 0.95 * y + rng.gaussian();
+                    y
+                })
+                .collect()
+        }
+        NoiseKind::Fan => FanParams::draw(rng).generate(n, rng),
+    };
     let p = if n == 0 {
         1.0
     } else {
@@ -146,14 +153,21 @@ pub fn mix_at_snr(
         0.0
     };
     let nz = noise(n, kind, noise_power, rng);
-    (0..n)
-        .map(|i| {
+    place_in_noise(speech, &nz, lead)
+}
+
+/// `speech` added to `nz` (sample units) from sample `lead` on, clipped to 16 bits; as long as
+/// `nz`.
+fn place_in_noise(speech: &[i16], nz: &[f64], lead: usize) -> Vec<i16> {
+    nz.iter()
+        .enumerate()
+        .map(|(i, &z)| {
             let s = if i >= lead && i < lead + speech.len() {
                 speech[i - lead] as f64
             } else {
                 0.0
             };
-            (s + nz[i]).round().clamp(-32768.0, 32767.0) as i16
+            (s + z).round().clamp(-32768.0, 32767.0) as i16
         })
         .collect()
 }
@@ -164,6 +178,257 @@ pub fn gain_clipped(samples: &[i16], gain: f64) -> Vec<i16> {
         .iter()
         .map(|&s| (s as f64 * gain).round().clamp(-32768.0, 32767.0) as i16)
         .collect()
+}
+
+/// Sample rate of fan noise, babble, mixing and the room simulation (Hz).
+const RATE: f64 = 16_000.0;
+
+/// The random parameters of a [`NoiseKind::Fan`] noise.
+#[derive(Debug, Clone, Copy)]
+struct FanParams {
+    /// Cut-off of the 2-pole low-pass (Hz).
+    cutoff_hz: f64,
+    /// Blade-pass frequency (Hz).
+    blade_hz: f64,
+    /// Power of the blade-pass tone relative to the low-passed noise.
+    tone_power: f64,
+    /// Frequency of the level wobble (Hz).
+    wobble_hz: f64,
+    wobble_phase: f64,
+    /// Phases of the tone and its harmonics.
+    phases: [f64; 4],
+}
+
+impl FanParams {
+    /// Amplitude of each harmonic (1st to 4th) relative to the blade-pass tone.
+    const HARMONICS: [f64; 4] = [1.0, 0.5, 0.3, 0.2];
+    /// Power of the flat part relative to the low-passed noise (-13 dB).
+    const FLAT_POWER: f64 = 0.05;
+    /// Depth of the level wobble.
+    const WOBBLE: f64 = 0.04;
+
+    fn draw(rng: &mut NoiseRng) -> Self {
+        let tau = 2.0 * std::f64::consts::PI;
+        Self {
+            cutoff_hz: 400.0 + 300.0 * rng.uniform(),
+            blade_hz: 90.0 + 90.0 * rng.uniform(),
+            tone_power: 0.1 + 0.1 * rng.uniform(),
+            wobble_hz: 0.7 + 0.6 * rng.uniform(),
+            wobble_phase: tau * rng.uniform(),
+            phases: [(); 4].map(|()| tau * rng.uniform()),
+        }
+    }
+
+    /// `n` samples, not yet scaled to a power.
+    fn generate(&self, n: usize, rng: &mut NoiseRng) -> Vec<f64> {
+        let tau = 2.0 * std::f64::consts::PI;
+        // Butterworth low-pass biquad (RBJ cookbook, Q = 1/sqrt 2).
+        let w0 = tau * self.cutoff_hz / RATE;
+        let alpha = w0.sin() / std::f64::consts::SQRT_2;
+        let a0 = 1.0 + alpha;
+        let b0 = (1.0 - w0.cos()) / 2.0 / a0;
+        let b1 = (1.0 - w0.cos()) / a0;
+        let a1 = -2.0 * w0.cos() / a0;
+        let a2 = (1.0 - alpha) / a0;
+        let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+        let mut low_pass = |x: f64| {
+            let y = b0 * x + b1 * x1 + b0 * x2 - a1 * y1 - a2 * y2;
+            (x2, x1, y2, y1) = (x1, x, y1, y);
+            y
+        };
+        // Settle the filter (its time constant is well under 64 samples).
+        for _ in 0..64 {
+            low_pass(rng.gaussian());
+        }
+        let mut low = Vec::with_capacity(n);
+        let mut flat = Vec::with_capacity(n);
+        for _ in 0..n {
+            low.push(low_pass(rng.gaussian()));
+            flat.push(rng.gaussian());
+        }
+        let p_low = low.iter().map(|x| x * x).sum::<f64>() / n.max(1) as f64;
+        let low_gain = if p_low > 0.0 { 1.0 / p_low.sqrt() } else { 0.0 };
+        let flat_gain = Self::FLAT_POWER.sqrt();
+        // A sine of amplitude a has power a^2 / 2.
+        let tone_amp = (2.0 * self.tone_power).sqrt();
+        low.iter()
+            .zip(&flat)
+            .enumerate()
+            .map(|(i, (l, f))| {
+                let t = i as f64 / RATE;
+                let level = tone_amp
+                    * (1.0 + Self::WOBBLE * (tau * self.wobble_hz * t + self.wobble_phase).sin());
+                let tones: f64 = Self::HARMONICS
+                    .iter()
+                    .zip(self.phases)
+                    .enumerate()
+                    .map(|(h, (a, ph))| a * (tau * self.blade_hz * (h + 1) as f64 * t + ph).sin())
+                    .sum();
+                l * low_gain + f * flat_gain + level * tones
+            })
+            .collect()
+    }
+}
+
+/// `n` samples of babble with power `power_fs` (full-scale units, as [`noise`]): the sum of the
+/// `talkers`' speech (16 kHz, e.g. each talker's sentences concatenated), each scaled to the same
+/// active power and looped from a random offset, so their pauses do not line up. Use 2 talkers
+/// or more (a crowd from about 6); silent or empty talkers are skipped, and with none left the
+/// result is silence.
+pub fn babble(talkers: &[Vec<i16>], n: usize, power_fs: f64, rng: &mut NoiseRng) -> Vec<f64> {
+    let mut v = vec![0.0; n];
+    for talker in talkers {
+        let offset = (rng.uniform() * talker.len() as f64) as usize;
+        let p = active_power(talker);
+        if p <= 0.0 {
+            continue;
+        }
+        let gain = 1.0 / (p.sqrt() * 32768.0);
+        for (x, &s) in v.iter_mut().zip(talker.iter().cycle().skip(offset)) {
+            *x += s as f64 * gain;
+        }
+    }
+    let p = if n == 0 {
+        1.0
+    } else {
+        v.iter().map(|x| x * x).sum::<f64>() / n as f64
+    };
+    let gain = if p > 0.0 { (power_fs / p).sqrt() } else { 0.0 };
+    v.iter().map(|x| x * gain * 32768.0).collect()
+}
+
+/// Place `speech` after `lead_s` of `noise`, followed by `trail_s` of it, at 16 kHz, as
+/// [`mix_at_snr`] does with a given noise (sample units, e.g. from [`noise`] or [`babble`]): its
+/// first `lead + speech + trail` samples (repeated if it is shorter) are scaled so the speech's
+/// active power over their power is `snr_db`. The result is clipped to 16 bits.
+/// `snr_db = f64::INFINITY` (or a silent noise) adds silence instead of noise.
+pub fn mix_with_noise(
+    speech: &[i16],
+    snr_db: f64,
+    noise: &[f64],
+    lead_s: f64,
+    trail_s: f64,
+) -> Vec<i16> {
+    let lead = (lead_s * RATE) as usize;
+    let trail = (trail_s * RATE) as usize;
+    let n = lead + speech.len() + trail;
+    let used: Vec<f64> = noise.iter().copied().cycle().take(n).collect();
+    let p = if used.is_empty() {
+        0.0
+    } else {
+        used.iter().map(|x| (x / 32768.0).powi(2)).sum::<f64>() / used.len() as f64
+    };
+    let gain = if snr_db.is_finite() && p > 0.0 {
+        (active_power(speech) / 10f64.powf(snr_db / 10.0) / p).sqrt()
+    } else {
+        0.0
+    };
+    let mut nz: Vec<f64> = used.iter().map(|x| x * gain).collect();
+    nz.resize(n, 0.0);
+    place_in_noise(speech, &nz, lead)
+}
+
+/// A synthetic room impulse response at 16 kHz, `rt60_s` long (at least one sample): the direct
+/// path (1.0 at sample 0), 5 to 10 early reflections in the first 50 ms (random delays, gains
+/// falling with path length), and from 5-15 ms on a tail of Gaussian noise whose envelope falls
+/// 60 dB in `rt60_s`. Its levels are those of a talker about 1.5 m away in a small room: the
+/// direct-to-reverberant ratio is about +3 dB at 0.3 s and about -1 dB at 0.8 s. A
+/// non-positive or non-finite `rt60_s` gives the direct path alone.
+pub fn room_impulse_response(rt60_s: f64, rng: &mut NoiseRng) -> Vec<f64> {
+    if !(rt60_s.is_finite() && rt60_s > 0.0) {
+        return vec![1.0];
+    }
+    /// Distance of the talker (m) and speed of sound (m/s).
+    const DISTANCE: f64 = 1.5;
+    const SOUND_SPEED: f64 = 343.0;
+    /// Amplitude of the tail's envelope at the direct path's time.
+    const TAIL_LEVEL: f64 = 0.037;
+    let len = ((rt60_s * RATE).round() as usize).max(1);
+    let mut h = vec![0.0; len];
+    h[0] = 1.0;
+    // Amplitude envelope falling 60 dB (a factor of 1000) in rt60_s.
+    let decay = |t: f64| 10f64.powf(-3.0 * t / rt60_s);
+    let tail_start = 0.005 + 0.010 * rng.uniform();
+    let fade = 0.005;
+    for (i, x) in h.iter_mut().enumerate().skip((tail_start * RATE) as usize) {
+        let t = i as f64 / RATE;
+        let ramp = ((t - tail_start) / fade).clamp(0.0, 1.0);
+        *x = TAIL_LEVEL * ramp * decay(t) * rng.gaussian();
+    }
+    let reflections = 5 + (rng.uniform() * 6.0) as usize;
+    for _ in 0..reflections {
+        let delay = 0.002 + 0.048 * rng.uniform();
+        let absorption = 0.6 + 0.3 * rng.uniform();
+        let gain = absorption * DISTANCE / (DISTANCE + SOUND_SPEED * delay) * decay(delay);
+        if let Some(x) = h.get_mut((delay * RATE) as usize) {
+            *x += gain;
+        }
+    }
+    h
+}
+
+/// `samples` (16 kHz) in a room: convolved (by FFT) with a [`room_impulse_response`] for
+/// `rt60_s`, so the result is the input followed by its reverberant tail (`rt60_s` minus one
+/// sample longer), scaled so its active power equals the input's, clipped to 16 bits.
+pub fn reverberate(samples: &[i16], rt60_s: f64, rng: &mut NoiseRng) -> Vec<i16> {
+    let h = room_impulse_response(rt60_s, rng);
+    let x: Vec<f64> = samples.iter().map(|&s| s as f64).collect();
+    let y = convolve(&x, &h);
+    let p = active_power_f64(&y);
+    let gain = if p > 0.0 {
+        (active_power(samples) * 32768.0 * 32768.0 / p).sqrt()
+    } else {
+        0.0
+    };
+    y.iter()
+        .map(|v| (v * gain).round().clamp(-32768.0, 32767.0) as i16)
+        .collect()
+}
+
+/// [`active_power`] of samples in sample units (not full-scale).
+fn active_power_f64(samples: &[f64]) -> f64 {
+    let frames: Vec<f64> = samples
+        .chunks(160)
+        .map(|c| c.iter().map(|x| x * x).sum::<f64>() / c.len() as f64)
+        .collect();
+    let max = frames.iter().cloned().fold(0.0, f64::max);
+    let active: Vec<f64> = frames.into_iter().filter(|&p| p > max * 1e-3).collect();
+    if active.is_empty() {
+        0.0
+    } else {
+        active.iter().sum::<f64>() / active.len() as f64
+    }
+}
+
+/// Linear convolution of `a` and `b` (`a.len() + b.len() - 1` samples; none if either is empty),
+/// by one forward and one inverse FFT: both real signals share a complex transform.
+fn convolve(a: &[f64], b: &[f64]) -> Vec<f64> {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    if a.is_empty() || b.is_empty() {
+        return Vec::new();
+    }
+    let len = a.len() + b.len() - 1;
+    let size = len.next_power_of_two();
+    let mut z = vec![Complex::new(0.0, 0.0); size];
+    for (z, &x) in z.iter_mut().zip(a) {
+        z.re = x;
+    }
+    for (z, &x) in z.iter_mut().zip(b) {
+        z.im = x;
+    }
+    let mut planner = FftPlanner::<f64>::new();
+    planner.plan_fft_forward(size).process(&mut z);
+    // With z = a + ib: A[k] = (Z[k] + Z*[-k]) / 2, B[k] = (Z[k] - Z*[-k]) / 2i, so
+    // A[k] B[k] = -i (Z[k]^2 - Z*[-k]^2) / 4.
+    let mut c: Vec<Complex<f64>> = (0..size)
+        .map(|k| {
+            let zk = z[k];
+            let zc = z[(size - k) % size].conj();
+            (zk * zk - zc * zc) * Complex::new(0.0, -0.25)
+        })
+        .collect();
+    planner.plan_fft_inverse(size).process(&mut c);
+    c.iter().take(len).map(|v| v.re / size as f64).collect()
 }
 
 #[cfg(test)]
@@ -286,5 +551,406 @@ mod dc_tests {
         let peak = tail.iter().map(|&s| s.abs()).max().unwrap_or(0);
         assert!((2800..=3300).contains(&peak), "peak {peak}");
         assert!((dc.offset() - 4000.0).abs() < 100.0, "{}", dc.offset());
+    }
+}
+
+#[cfg(test)]
+mod room_tests {
+    use super::*;
+    use rustfft::{FftPlanner, num_complex::Complex};
+    use std::f64::consts::PI;
+
+    /// Power per DFT bin of `x` (bins of `RATE / x.len()` Hz, first half only).
+    fn spectrum(x: &[f64]) -> Vec<f64> {
+        let mut z: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v, 0.0)).collect();
+        FftPlanner::<f64>::new()
+            .plan_fft_forward(z.len())
+            .process(&mut z);
+        z[..x.len() / 2].iter().map(|c| c.norm_sqr()).collect()
+    }
+
+    fn power_f64(x: &[f64]) -> f64 {
+        x.iter().map(|v| (v / 32768.0).powi(2)).sum::<f64>() / x.len() as f64
+    }
+
+    fn db(ratio: f64) -> f64 {
+        10.0 * ratio.log10()
+    }
+
+    /// RT60 from Schroeder's backward integration: a straight-line fit of the energy decay curve
+    /// between -5 and -25 dB, extrapolated to -60 dB.
+    fn schroeder_rt60(h: &[f64]) -> f64 {
+        let mut edc: Vec<f64> = h.iter().map(|x| x * x).collect();
+        for i in (0..edc.len() - 1).rev() {
+            edc[i] += edc[i + 1];
+        }
+        let total = edc[0];
+        let points: Vec<(f64, f64)> = edc
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| (i as f64 / RATE, db(e / total)))
+            .filter(|&(_, d)| (-25.0..=-5.0).contains(&d))
+            .collect();
+        let n = points.len() as f64;
+        let mt = points.iter().map(|p| p.0).sum::<f64>() / n;
+        let md = points.iter().map(|p| p.1).sum::<f64>() / n;
+        let cov: f64 = points.iter().map(|p| (p.0 - mt) * (p.1 - md)).sum();
+        let var: f64 = points.iter().map(|p| (p.0 - mt).powi(2)).sum();
+        -60.0 / (cov / var)
+    }
+
+    /// A talker: a tone at `hz` with two harmonics, in 250 ms syllables (10 ms ramps) separated
+    /// by 120 ms pauses, `syllables` of them, peak amplitude `amp`.
+    fn talker(hz: f64, amp: f64, syllables: usize) -> Vec<i16> {
+        let (on, off) = (4000, 1920);
+        let mut v = Vec::new();
+        for _ in 0..syllables {
+            for i in 0..on {
+                let t = v.len() as f64 / RATE;
+                let ramp = (i.min(on - i) as f64 / 160.0).min(1.0);
+                let x = (2.0 * PI * hz * t).sin() + 0.3 * (4.0 * PI * hz * t).sin();
+                v.push((amp * ramp * x / 1.3) as i16);
+            }
+            v.extend(std::iter::repeat_n(0, off));
+        }
+        v
+    }
+
+    /// The quietest 100 ms window (10 ms steps) of `x`, in dB under its mean power.
+    fn quietest_100ms_db(x: &[f64]) -> f64 {
+        let mean = power_f64(x);
+        (0..=(x.len() - 1600) / 160)
+            .map(|k| db(power_f64(&x[k * 160..k * 160 + 1600]) / mean))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn fan_noise_has_the_power_a_low_spectrum_and_a_blade_tone() {
+        for seed in [1, 2, 3] {
+            let params = FanParams::draw(&mut NoiseRng::new(seed));
+            let n = 32_000;
+            let x = noise(n, NoiseKind::Fan, 1e-3, &mut NoiseRng::new(seed));
+            assert_eq!(x.len(), n);
+            let p = power_f64(&x);
+            assert!(db(p / 1e-3).abs() < 0.5, "power {p}");
+            // Bins of 0.5 Hz.
+            let spec = spectrum(&x);
+            let hz = |k: usize| k as f64 * RATE / n as f64;
+            let total: f64 = spec.iter().sum();
+            let low: f64 = spec
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| hz(k) < 1000.0)
+                .map(|e| e.1)
+                .sum();
+            assert!(
+                low / total > 0.8,
+                "seed {seed}: {:.1} % under 1 kHz",
+                100.0 * low / total
+            );
+            // The strongest bin between 50 Hz and 1 kHz is the blade-pass tone, far above the
+            // noise around it.
+            let (peak, peak_power) = spec
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| (50.0..1000.0).contains(&hz(k)))
+                .fold(
+                    (0, 0.0),
+                    |best, (k, &p)| if p > best.1 { (k, p) } else { best },
+                );
+            assert!(
+                (hz(peak) - params.blade_hz).abs() < 1.0,
+                "seed {seed}: peak at {} Hz, blade pass {} Hz",
+                hz(peak),
+                params.blade_hz
+            );
+            let mut around: Vec<f64> = spec
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| (hz(k) - params.blade_hz).abs() < 40.0)
+                .map(|e| *e.1)
+                .collect();
+            around.sort_by(f64::total_cmp);
+            let median = around[around.len() / 2];
+            assert!(
+                db(peak_power / median) > 15.0,
+                "seed {seed}: peak only {} dB",
+                db(peak_power / median)
+            );
+        }
+    }
+
+    #[test]
+    fn babble_has_no_silent_stretch_and_equal_talkers() {
+        // The same rhythm for all three, so without random offsets their pauses would coincide.
+        let talkers = vec![
+            talker(300.0, 1000.0, 8),
+            talker(1100.0, 6000.0, 11),
+            talker(1900.0, 20000.0, 13),
+        ];
+        for t in &talkers {
+            let t: Vec<f64> = t.iter().map(|&s| s as f64).collect();
+            assert!(quietest_100ms_db(&t) < -60.0, "each talker has pauses");
+        }
+        let n = 80_000;
+        let b = babble(&talkers, n, 1e-2, &mut NoiseRng::new(5));
+        assert_eq!(b.len(), n);
+        assert!(db(power_f64(&b) / 1e-2).abs() < 0.01);
+        let quietest = quietest_100ms_db(&b);
+        assert!(
+            quietest > -10.0,
+            "a 100 ms stretch {quietest} dB under the mean"
+        );
+        // Equal active power per talker: equal energy around each talker's tones.
+        let spec = spectrum(&b);
+        let band = |hz: f64| -> f64 {
+            let k = (hz * n as f64 / RATE) as usize;
+            let w = (60.0 * n as f64 / RATE) as usize;
+            spec[k - w..k + w].iter().sum::<f64>()
+                + spec[2 * k - 2 * w..2 * k + 2 * w].iter().sum::<f64>()
+        };
+        let levels = [band(300.0), band(1100.0), band(1900.0)];
+        for l in levels {
+            assert!(db(l / levels[0]).abs() < 1.0, "talker levels {levels:?}");
+        }
+    }
+
+    #[test]
+    fn mixing_with_a_given_noise_hits_the_snr() {
+        let speech = talker(200.0, 8000.0, 3);
+        let talkers = vec![talker(150.0, 3000.0, 9), talker(230.0, 9000.0, 7)];
+        let nz = babble(&talkers, 40_000, 1e-3, &mut NoiseRng::new(9));
+        let lead = 8000;
+        for snr in [0.0, 10.0, 20.0] {
+            let mixed = mix_with_noise(&speech, snr, &nz, 0.5, 0.5);
+            assert_eq!(mixed.len(), lead + speech.len() + 8000);
+            let residual: Vec<f64> = mixed
+                .iter()
+                .enumerate()
+                .map(|(i, &m)| {
+                    let s = if i >= lead && i < lead + speech.len() {
+                        speech[i - lead]
+                    } else {
+                        0
+                    };
+                    m as f64 - s as f64
+                })
+                .collect();
+            let measured = db(active_power(&speech) / power_f64(&residual));
+            assert!(
+                (measured - snr).abs() < 0.5,
+                "asked {snr} dB, got {measured}"
+            );
+        }
+        let clean = mix_with_noise(&speech, f64::INFINITY, &nz, 0.5, 0.5);
+        assert!(clean[..lead].iter().all(|&s| s == 0));
+        assert_eq!(clean[lead..lead + speech.len()], speech[..]);
+        // A noise shorter than the mix is repeated.
+        let short = mix_with_noise(&speech, 10.0, &nz[..1000], 0.5, 0.5);
+        assert_eq!(short.len(), speech.len() + 16_000);
+        assert_eq!(short[..1000], short[1000..2000]);
+        assert!(short[..1000].iter().any(|&s| s != 0));
+    }
+
+    /// `noise` and `mix_at_snr` as they were before the fan noise and `mix_with_noise`.
+    fn old_noise(n: usize, kind: NoiseKind, power_fs: f64, rng: &mut NoiseRng) -> Vec<f64> {
+        let mut v: Vec<f64> = Vec::with_capacity(n);
+        let mut y = 0.0;
+        for _ in 0..n {
+            let g = rng.gaussian();
+            let x = match kind {
+                NoiseKind::White => g,
+                NoiseKind::Brown => {
+                    y = 0.95 * y + g;
+                    y
+                }
+                NoiseKind::Fan => unreachable!(),
+            };
+            v.push(x);
+        }
+        let p = if n == 0 {
+            1.0
+        } else {
+            v.iter().map(|x| x * x).sum::<f64>() / n as f64
+        };
+        let gain = if p > 0.0 { (power_fs / p).sqrt() } else { 0.0 };
+        v.iter().map(|x| x * gain * 32768.0).collect()
+    }
+
+    fn old_mix_at_snr(
+        speech: &[i16],
+        snr_db: f64,
+        kind: NoiseKind,
+        lead_s: f64,
+        trail_s: f64,
+        rng: &mut NoiseRng,
+    ) -> Vec<i16> {
+        let lead = (lead_s * 16_000.0) as usize;
+        let trail = (trail_s * 16_000.0) as usize;
+        let n = lead + speech.len() + trail;
+        let noise_power = if snr_db.is_finite() {
+            active_power(speech) / 10f64.powf(snr_db / 10.0)
+        } else {
+            0.0
+        };
+        let nz = old_noise(n, kind, noise_power, rng);
+        (0..n)
+            .map(|i| {
+                let s = if i >= lead && i < lead + speech.len() {
+                    speech[i - lead] as f64
+                } else {
+                    0.0
+                };
+                (s + nz[i]).round().clamp(-32768.0, 32767.0) as i16
+            })
+            .collect()
+    }
+
+    #[test]
+    fn white_and_brown_noise_and_mix_at_snr_are_unchanged() {
+        let speech = talker(180.0, 12000.0, 4);
+        for kind in [NoiseKind::White, NoiseKind::Brown] {
+            for seed in [1, 42, 2024] {
+                let (mut a, mut b) = (NoiseRng::new(seed), NoiseRng::new(seed));
+                assert_eq!(
+                    noise(5000, kind, 3e-3, &mut a),
+                    old_noise(5000, kind, 3e-3, &mut b)
+                );
+                for snr in [-5.0, 0.0, 7.5, 20.0, f64::INFINITY] {
+                    let new = mix_at_snr(&speech, snr, kind, 0.3, 0.2, &mut a);
+                    let old = old_mix_at_snr(&speech, snr, kind, 0.3, 0.2, &mut b);
+                    assert_eq!(new, old, "{kind:?} seed {seed} snr {snr}");
+                }
+                assert_eq!(a.uniform(), b.uniform(), "the generator advanced alike");
+            }
+        }
+    }
+
+    #[test]
+    fn room_impulse_responses_decay_at_the_requested_rt60() {
+        let mut drr = Vec::new();
+        for rt60 in [0.3, 0.5, 0.8] {
+            for seed in [1, 2, 3, 4] {
+                let h = room_impulse_response(rt60, &mut NoiseRng::new(seed));
+                assert_eq!(h.len(), (rt60 * RATE).round() as usize);
+                assert_eq!(h[0], 1.0);
+                // Sparse before the tail: only reflections in the first 5 ms.
+                let early = h[1..80].iter().filter(|&&x| x != 0.0).count();
+                assert!(early <= 10, "{early} taps in the first 5 ms");
+                let measured = schroeder_rt60(&h);
+                assert!(
+                    (measured / rt60 - 1.0).abs() < 0.15,
+                    "seed {seed}: asked {rt60} s, measured {measured} s"
+                );
+                let reverberant: f64 = h[1..].iter().map(|x| x * x).sum();
+                drr.push((rt60, db(1.0 / reverberant)));
+            }
+        }
+        for &(rt60, d) in &drr {
+            if rt60 == 0.3 {
+                assert!(
+                    (0.0..=6.0).contains(&d),
+                    "direct-to-reverberant {d} dB at 0.3 s"
+                );
+            }
+        }
+        let mean = |rt60: f64| {
+            let v: Vec<f64> = drr.iter().filter(|e| e.0 == rt60).map(|e| e.1).collect();
+            v.iter().sum::<f64>() / v.len() as f64
+        };
+        assert!(mean(0.3) > mean(0.5) && mean(0.5) > mean(0.8), "{drr:?}");
+        assert_eq!(room_impulse_response(0.0, &mut NoiseRng::new(1)), vec![1.0]);
+        assert_eq!(
+            room_impulse_response(f64::NAN, &mut NoiseRng::new(1)),
+            vec![1.0]
+        );
+    }
+
+    #[test]
+    fn a_click_rings_for_about_rt60() {
+        for rt60 in [0.3, 0.8] {
+            let mut click = vec![0i16; 3200];
+            click[1600] = 4000;
+            let out = reverberate(&click, rt60, &mut NoiseRng::new(11));
+            let taps = (rt60 * RATE).round() as usize;
+            assert_eq!(out.len(), click.len() + taps - 1);
+            assert!(
+                out[..1600].iter().all(|&s| s == 0),
+                "nothing before the click"
+            );
+            let response: Vec<f64> = out[1600..].iter().map(|&s| s as f64).collect();
+            let measured = schroeder_rt60(&response);
+            assert!(
+                (measured / rt60 - 1.0).abs() < 0.15,
+                "asked {rt60} s, measured {measured}"
+            );
+            // Still ringing past half the RT60, and its last 10 ms fall quiet.
+            let last = response.iter().rposition(|&s| s != 0.0).unwrap_or(0);
+            assert!(
+                last as f64 > 0.5 * rt60 * RATE,
+                "rings for {} s only",
+                last as f64 / RATE
+            );
+            let start = power_f64(&response[160..320]);
+            let end = power_f64(&response[taps - 160..taps]);
+            assert!(db(end / start) < -40.0, "end {} dB", db(end / start));
+        }
+    }
+
+    #[test]
+    fn reverberation_keeps_the_active_power() {
+        let speech = talker(170.0, 9000.0, 6);
+        let input = active_power(&speech);
+        for rt60 in [0.3, 0.5, 0.8] {
+            let out = reverberate(&speech, rt60, &mut NoiseRng::new(3));
+            let d = db(active_power(&out) / input);
+            assert!(d.abs() < 1.0, "rt60 {rt60}: {d} dB");
+            assert_ne!(out[..speech.len()], speech[..], "reverberant");
+        }
+        assert!(reverberate(&[], 0.5, &mut NoiseRng::new(3)).is_empty());
+        assert!(
+            reverberate(&[0; 100], 0.5, &mut NoiseRng::new(3))
+                .iter()
+                .all(|&s| s == 0)
+        );
+    }
+
+    #[test]
+    fn fft_convolution_equals_direct_convolution() {
+        let mut rng = NoiseRng::new(17);
+        for (na, nb) in [(300, 77), (1, 1), (64, 1), (33, 32), (5, 400)] {
+            let a: Vec<f64> = (0..na).map(|_| 1000.0 * rng.gaussian()).collect();
+            let b: Vec<f64> = (0..nb).map(|_| rng.gaussian()).collect();
+            let mut direct = vec![0.0; na + nb - 1];
+            for (i, x) in a.iter().enumerate() {
+                for (j, y) in b.iter().enumerate() {
+                    direct[i + j] += x * y;
+                }
+            }
+            let fast = convolve(&a, &b);
+            assert_eq!(fast.len(), direct.len());
+            for (f, d) in fast.iter().zip(&direct) {
+                assert!((f - d).abs() < 1e-6, "{f} vs {d}");
+            }
+        }
+        assert!(convolve(&[], &[1.0]).is_empty());
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_output() {
+        let speech = talker(190.0, 7000.0, 3);
+        let talkers = vec![talker(150.0, 3000.0, 5), talker(230.0, 9000.0, 4)];
+        let run = |seed| {
+            let mut rng = NoiseRng::new(seed);
+            (
+                noise(4000, NoiseKind::Fan, 1e-3, &mut rng),
+                babble(&talkers, 4000, 1e-3, &mut rng),
+                room_impulse_response(0.5, &mut rng),
+                reverberate(&speech, 0.4, &mut rng),
+            )
+        };
+        assert_eq!(run(8), run(8));
+        let (a, b) = (run(8), run(9));
+        assert!(a.0 != b.0 && a.1 != b.1 && a.2 != b.2 && a.3 != b.3);
     }
 }
