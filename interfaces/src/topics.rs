@@ -78,6 +78,8 @@ pub const AUDIO_IN: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/in
 pub const AUDIO_OUT: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/out");
 /// Every utterance the recognizer decoded, with its confidence and command.
 pub const SPEECH_UTTERANCE: Topic<crate::msg::speech::Utterance> = Topic::new("speech/utterance");
+/// The recognizer's end-pointer: someone started or stopped speaking (before decoding).
+pub const SPEECH_ACTIVITY: Topic<crate::msg::speech::VoiceActivity> = Topic::new("speech/activity");
 /// Requests to say something, with a priority (urgent interrupts).
 pub const SPEECH_SAY: Topic<crate::msg::speech::SayRequest> = Topic::new("speech/say");
 /// The speech generator's progress: queued, started, finished, interrupted.

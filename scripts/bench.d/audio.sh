@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # The audio path: a click on audio/out back on audio/in through audio_io and a sound server
-# (speaker to microphone), against the same click through libpulse alone (the floor), and the
-# capture-to-bus delay of the microphone's chunks. The sound server is a PulseAudio of this run's
-# own (system mode as root, an anonymous unix socket in the bench's folder): a null sink `room`
-# and a virtual source `mic` on its monitor. Extra arguments go to bench_audio (--clicks N).
+# (speaker to microphone), against the same click through libpulse alone (the floor), the
+# capture-to-bus delay of the microphone's chunks, and the robot's own voice in its microphone
+# without and with the sound server's WebRTC echo canceller. The sound server is a PulseAudio of
+# this run's own (system mode as root, an anonymous unix socket in the bench's folder): a null
+# sink `room` with a virtual source `mic` on its monitor, and a null sink `speaker` (the robot's
+# loudspeaker) heard in the room through a loop-back. Extra arguments go to bench_audio
+# (--clicks N, --sentences N).
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 need_voice_debs
@@ -19,6 +22,8 @@ cat >"$work/room.pa" <<PA
 load-module module-native-protocol-unix socket=$work/native auth-anonymous=1
 load-module module-null-sink sink_name=room rate=48000 channels=2
 load-module module-virtual-source source_name=mic master=room.monitor
+load-module module-null-sink sink_name=speaker rate=48000 channels=2
+load-module module-loopback source=speaker.monitor sink=room latency_msec=20
 PA
 mode=()
 [ "$(id -u)" -eq 0 ] && mode=(--system)

@@ -499,9 +499,36 @@ pub struct SoundServer {
     pub log: PathBuf,
 }
 
+/// What [`SoundServer::start_room`] adds to the room: the robot's loudspeaker and the person's
+/// mouth as sinks of their own, each heard in the room (a loop-back into `room`, 20 ms of air),
+/// and a stereo `tap` that hears the loudspeaker on the left and the person on the right, for a
+/// test to measure one against the other on one clock.
+const ROOM_WITH_SPEAKER: &str = "\
+    load-module module-null-sink sink_name=speaker rate=48000 channels=2\n\
+    load-module module-null-sink sink_name=person rate=48000 channels=2\n\
+    load-module module-null-sink sink_name=tap rate=48000 channels=2\n\
+    load-module module-loopback source=speaker.monitor sink=room latency_msec=20\n\
+    load-module module-loopback source=person.monitor sink=room latency_msec=20\n\
+    load-module module-loopback source=speaker.monitor sink=tap latency_msec=20 channels=1 \
+        channel_map=front-left remix=no\n\
+    load-module module-loopback source=person.monitor sink=tap latency_msec=20 channels=1 \
+        channel_map=front-right remix=no\n";
+
 impl SoundServer {
     /// Start one for the test `tag`, waiting (10 s at most) until it answers.
     pub fn start(tag: &str) -> SoundServer {
+        Self::start_with(tag, "")
+    }
+
+    /// A room where the robot's voice and the person's come from sinks of their own (`speaker`
+    /// and `person`), so that an echo canceller can take the robot's voice out of what the
+    /// microphone (`room.monitor`) hears, with `tap.monitor` hearing both apart (left: the
+    /// loudspeaker, right: the person).
+    pub fn start_room(tag: &str) -> SoundServer {
+        Self::start_with(tag, ROOM_WITH_SPEAKER)
+    }
+
+    fn start_with(tag: &str, more: &str) -> SoundServer {
         let dir = scratch(&unique_namespace(&format!("sound-{tag}"))).join("pulse");
         std::fs::create_dir_all(&dir).expect("sound server dir");
         // The server drops to its own user: it must be able to make its socket here.
@@ -515,7 +542,7 @@ impl SoundServer {
             format!(
                 "load-module module-native-protocol-unix socket={} auth-anonymous=1\n\
                  load-module module-null-sink sink_name=room rate=48000 channels=2\n\
-                 load-module module-virtual-source source_name=mic master=room.monitor\n",
+                 load-module module-virtual-source source_name=mic master=room.monitor\n{more}",
                 socket.display()
             ),
         )
@@ -570,9 +597,15 @@ impl SoundServer {
 
     /// Record `source` as 16 kHz mono s16le into `file` until the returned child is stopped.
     pub fn record(&self, source: &str, file: &Path) -> Child {
+        self.record_channels(source, file, 1)
+    }
+
+    /// Record `source` as 16 kHz s16le with `channels` interleaved into `file`.
+    pub fn record_channels(&self, source: &str, file: &Path, channels: u8) -> Child {
         Command::new("parec")
             .args(["--server", &self.address, "--device", source])
-            .args(["--raw", "--format=s16le", "--rate=16000", "--channels=1"])
+            .args(["--raw", "--format=s16le", "--rate=16000"])
+            .arg(format!("--channels={channels}"))
             .arg("--latency-msec=20")
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(file).expect("recording file"))

@@ -24,6 +24,10 @@ struct Game {
     entered: Vec<String>,
     /// What the robot started saying, in order (lowercase).
     said: Vec<String>,
+    /// What the robot was cut short in (lowercase).
+    interrupted: Vec<String>,
+    /// The robot's speech events and what it heard, with when they came (s on the bus clock).
+    timeline: Vec<String>,
     /// Arm reach states (not the neck), in order.
     arm: Vec<ReachState>,
     /// At each arm `Reached`: distance from the hand centre to the true ball's surface (m), and
@@ -122,6 +126,9 @@ async fn play_with(
         .await
         .unwrap();
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await.unwrap();
+    let heard = bus.subscriber(&topics::SPEECH_UTTERANCE).await.unwrap();
+    let t0 = bus.clock().now_ns();
+    let at = |bus: &Bus| (bus.clock().now_ns() - t0) as f64 * 1e-9;
     let reach = bus.subscriber(&topics::BODY_REACH_STATUS).await.unwrap();
     let balls = bus.subscriber(&topics::SIM_BALL).await.unwrap();
     let mut game = Game::default();
@@ -136,6 +143,18 @@ async fn play_with(
                 if s.state == SpeakingState::Started {
                     game.said.push(s.text.to_lowercase());
                 }
+                if s.state == SpeakingState::Interrupted {
+                    game.interrupted.push(s.text.to_lowercase());
+                }
+                game.timeline.push(format!("{:.3} robot {:?} {:?} ({:.2} s)", at(&bus), s.state, s.text, s.duration_s));
+            }
+            u = heard.recv() => {
+                let u = u.unwrap();
+                game.timeline.push(format!(
+                    "{:.3} heard {:?} (confidence {:.2}), speech {:.2}-{:.2} s on the stream, \
+                     {:.0} ms after its end was detected",
+                    at(&bus), u.text, u.confidence, u.stream_start_s, u.stream_end_s, u.latency_s * 1000.0
+                ));
             }
             b = balls.recv() => truth = Some(b.unwrap()),
             r = reach.recv() => {
@@ -266,6 +285,276 @@ async fn touch_a_still_ball_with_every_sound_through_a_sound_server() {
         "{out}"
     );
     assert!(out.contains("microphone \"mic\" onto audio/in"), "{out}");
+}
+
+/// Barge-in through a sound server: the robot's voice plays from a loudspeaker of its own into
+/// the room, the person speaks into the room from elsewhere, and the microphone hears the room.
+/// `audio_io` loads the server's WebRTC echo canceller between the microphone and the
+/// loudspeaker, and the dialog takes commands said over the robot (`barge_in`). One second into
+/// the robot's "Great, let's play! Show me the ball and ask me to scan it.", the person says
+/// "stop": the robot's loudspeaker falls silent within 300 ms of the end of her "stop" (measured
+/// on one recording that hears the loudspeaker and the person apart), the sentence is reported
+/// interrupted, and the game ends.
+///
+/// Ignored: it fails. While the server's canceller adapts (the robot's first seconds of speech),
+/// what it lets through of the robot's voice is heard as sustained speech and decoded as
+/// commands with confidences up to 0.85 ("no", "stop", "hello"), so the robot pauses for its own
+/// voice and the dialog cuts its first sentence. See ARCHITECTURE.md, "The robot's own voice".
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "fails: the echo canceller's leaks while it adapts are taken for the player's speech"]
+async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
+    let server = SoundServer::start_room("barge-in");
+    let tap = server.log.with_file_name("tap.raw");
+    let mut recorder = server.record_channels("tap.monitor", &tap, 2);
+    let address = format!("sound_server={}", server.address);
+    let game = play(
+        "barge_in",
+        &[
+            "audio=true",
+            "microphone=room.monitor",
+            "speaker=speaker",
+            "echo_cancel=webrtc",
+            "barge_in=true",
+            "person_voice=pulse",
+            "person_room=person",
+            "dialog_microphones=audio_io",
+            &address,
+        ],
+        Duration::from_secs(120),
+    )
+    .await;
+    let _ = recorder.kill();
+    let _ = recorder.wait();
+    check_ok(&game);
+    game.entered_in_order(&["playing", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    let out = game.output.join("\n");
+    assert!(out.contains("echo cancellation"), "{out}");
+    assert!(
+        game.interrupted.iter().any(|t| t.contains("let's play")),
+        "the robot's sentence was not cut: {game:?}"
+    );
+    assert!(
+        !game.said.iter().any(|t| t.contains("did you say")),
+        "a question was asked: {:?}",
+        game.said
+    );
+    let pcm = std::fs::read(&tap).expect("the tap's recording");
+    // The canceller adapts during the robot's first sentence: what it lets through of the robot
+    // must not make the robot stop for its own voice.
+    barge_in::first_played_whole(&pcm, executive::touch::say::GREETING)
+        .unwrap_or_else(|e| panic!("{e}\n{}", game.timeline.join("\n")));
+    let cut = barge_in::measure(&pcm, executive::touch::say::PLAY_ACK)
+        .unwrap_or_else(|e| panic!("{e}\ngame: {game:?}\noutput:\n{out}"));
+    println!(
+        "\"stop\" from {:.3} s to {:.3} s into the robot's sentence; its loudspeaker fell \
+         silent at {:.3} s, {:.0} ms after the end of \"stop\"",
+        cut.stop_start_s - cut.sentence_start_s,
+        cut.stop_end_s - cut.sentence_start_s,
+        cut.silent_s - cut.sentence_start_s,
+        cut.latency_s * 1000.0
+    );
+    assert!(
+        cut.latency_s <= 0.300,
+        "the robot went on {:.0} ms after \"stop\" ended (at most 300 ms): {cut:?}\n{}",
+        cut.latency_s * 1000.0,
+        game.timeline.join("\n")
+    );
+}
+
+/// Measuring a barge-in on a stereo recording (16 kHz s16le; left: the robot's loudspeaker,
+/// right: the person), in 10 ms frames.
+mod barge_in {
+    const RATE: usize = 16_000;
+    const FRAME: usize = 160;
+    const FRAME_S: f64 = FRAME as f64 / RATE as f64;
+
+    #[derive(Debug)]
+    pub struct Cut {
+        /// The robot's sentence's first sound on the loudspeaker (s on the recording).
+        pub sentence_start_s: f64,
+        /// The person's last words: start and end (s).
+        pub stop_start_s: f64,
+        pub stop_end_s: f64,
+        /// The end of the robot's last sound of the sentence (s).
+        pub silent_s: f64,
+        /// `silent_s - stop_end_s`.
+        pub latency_s: f64,
+    }
+
+    /// Frame levels (dB full scale; -120 for digital silence).
+    fn levels(samples: impl Iterator<Item = i16>) -> Vec<f64> {
+        let v: Vec<f64> = samples.map(f64::from).collect();
+        v.chunks_exact(FRAME)
+            .map(|f| {
+                let p = f.iter().map(|x| x * x).sum::<f64>() / FRAME as f64;
+                if p <= 0.0 {
+                    -120.0
+                } else {
+                    10.0 * (p / (32768.0 * 32768.0)).log10()
+                }
+            })
+            .collect()
+    }
+
+    /// Runs of frames above `threshold`, joined across gaps shorter than `gap` frames:
+    /// (first, one past last).
+    fn bursts(l: &[f64], threshold: f64, gap: usize) -> Vec<(usize, usize)> {
+        let mut out: Vec<(usize, usize)> = Vec::new();
+        for (i, &x) in l.iter().enumerate() {
+            if x < threshold {
+                continue;
+            }
+            match out.last_mut() {
+                Some(b) if i - b.1 < gap => b.1 = i + 1,
+                _ => out.push((i, i + 1)),
+            }
+        }
+        out
+    }
+
+    fn max(l: &[f64]) -> f64 {
+        l.iter().cloned().fold(-120.0, f64::max)
+    }
+
+    /// The two tracks' frame levels and peaks.
+    struct Tracks {
+        robot: Vec<f64>,
+        person: Vec<f64>,
+        robot_max: f64,
+    }
+
+    impl Tracks {
+        fn of(pcm: &[u8]) -> Tracks {
+            let s: Vec<i16> = pcm
+                .chunks_exact(2)
+                .map(|b| i16::from_le_bytes([b[0], b[1]]))
+                .collect();
+            let robot = levels(s.iter().step_by(2).copied());
+            let person = levels(s.iter().skip(1).step_by(2).copied());
+            let robot_max = max(&robot);
+            Tracks {
+                robot,
+                person,
+                robot_max,
+            }
+        }
+
+        /// Whether the loudspeaker is silent at frame `i` (45 dB under its peak).
+        fn silent(&self, i: usize) -> bool {
+            self.robot.get(i).is_none_or(|&x| x < self.robot_max - 45.0)
+        }
+    }
+
+    /// A sentence as the speech generator says it: frame levels, whether each is loud (within
+    /// 25 dB of its peak), its first loud frame and its longest pause (frames).
+    struct Sentence {
+        loud: Vec<bool>,
+        start: usize,
+        pause: usize,
+    }
+
+    impl Sentence {
+        fn of(text: &str) -> Result<Sentence, String> {
+            let pcm = audio::synth::synthesize_16k(text, &audio::synth::Voice::default())
+                .map_err(|e| format!("espeak-ng: {e}"))?;
+            let l = levels(pcm.into_iter());
+            let m = max(&l);
+            let b = bursts(&l, m - 25.0, 1);
+            let start = b.first().ok_or("the sentence is silent")?.0;
+            let pause = b.windows(2).map(|w| w[1].0 - w[0].1).max().unwrap_or(0);
+            Ok(Sentence {
+                loud: l.iter().map(|&x| x > m - 25.0).collect(),
+                start,
+                pause,
+            })
+        }
+
+        /// The first frame of the loudspeaker, for the sentence begun at `at`, where the sentence
+        /// has sound and the loudspeaker is silent for four frames (`None`: it played whole).
+        fn first_gap(&self, tracks: &Tracks, at: usize) -> Option<usize> {
+            (self.start..self.loud.len().saturating_sub(3)).find_map(|k| {
+                let i = at + (k - self.start);
+                (0..4)
+                    .all(|j| self.loud[k + j] && tracks.silent(i + j))
+                    .then_some(i)
+            })
+        }
+    }
+
+    /// The robot's sentences on the loudspeaker: sounds further apart than `sentence`'s longest
+    /// pause.
+    fn sounds(tracks: &Tracks, sentence: &Sentence) -> Vec<(usize, usize)> {
+        bursts(&tracks.robot, tracks.robot_max - 25.0, sentence.pause + 10)
+    }
+
+    /// Whether the robot's first sentence, `sentence`, played without a gap (it did not stop for
+    /// its own voice).
+    pub fn first_played_whole(pcm: &[u8], sentence: &str) -> Result<(), String> {
+        let tracks = Tracks::of(pcm);
+        let sentence = Sentence::of(sentence)?;
+        let &(start, _) = sounds(&tracks, &sentence)
+            .first()
+            .ok_or("the robot said nothing")?;
+        match sentence.first_gap(&tracks, start) {
+            None => Ok(()),
+            Some(i) => Err(format!(
+                "the robot's first sentence (from {:.2} s) stopped at {:.2} s",
+                start as f64 * FRAME_S,
+                i as f64 * FRAME_S
+            )),
+        }
+    }
+
+    /// Where the robot's `sentence` (synthesized as the speech generator does) was cut on the
+    /// loudspeaker, against the end of the person's last words.
+    pub fn measure(pcm: &[u8], sentence: &str) -> Result<Cut, String> {
+        let tracks = Tracks::of(pcm);
+        let sentence = Sentence::of(sentence)?;
+        // The person's last words: where her track is 10 dB over the room noise she speaks in
+        // (its median level: she is silent most of the time).
+        let mut sorted = tracks.person.clone();
+        sorted.sort_by(f64::total_cmp);
+        let noise = sorted.get(sorted.len() / 2).copied().unwrap_or(-120.0);
+        let words = bursts(&tracks.person, noise + 10.0, 20);
+        let &(stop_start, stop_end) = words.last().ok_or("the person said nothing")?;
+        // The robot's sentence that was under way when she began.
+        let &(start, _) = sounds(&tracks, &sentence)
+            .iter()
+            .rfind(|b| b.0 <= stop_start)
+            .ok_or_else(|| {
+                format!(
+                    "the robot said nothing before {:.2} s",
+                    stop_start as f64 * FRAME_S
+                )
+            })?;
+        // The cut is before the first gap, after the last sound the loudspeaker made.
+        let gap = sentence.first_gap(&tracks, start).ok_or_else(|| {
+            format!(
+                "the sentence from {:.2} s played to its end",
+                start as f64 * FRAME_S
+            )
+        })?;
+        let last_sound = (start..gap)
+            .rev()
+            .find(|&i| !tracks.silent(i))
+            .ok_or("no sound of the sentence")?;
+        let silent_s = (last_sound + 1) as f64 * FRAME_S;
+        let stop_end_s = stop_end as f64 * FRAME_S;
+        if last_sound < stop_start {
+            return Err(format!(
+                "the robot fell silent at {silent_s:.2} s, before the person spoke at {:.2} s",
+                stop_start as f64 * FRAME_S
+            ));
+        }
+        Ok(Cut {
+            sentence_start_s: start as f64 * FRAME_S,
+            stop_start_s: stop_start as f64 * FRAME_S,
+            stop_end_s,
+            silent_s,
+            latency_s: silent_s - stop_end_s,
+        })
+    }
 }
 
 /// The whole game with the camera's frames going as a real Kinect's do: the simulated Kinect sends

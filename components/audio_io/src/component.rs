@@ -2,11 +2,11 @@
 //! (`audio/out` to the speaker) around the bus loop. See the crate doc for what is counted and
 //! what happens when a device goes away.
 
-use interfaces::msg::speech::{AudioChunk, SpeakingState};
+use interfaces::msg::speech::{AudioChunk, SpeakingState, VoiceState};
 use interfaces::node::{Component, Interface, config_error};
 use interfaces::{Bus, Shutdown, topics};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// Where the sound devices are.
@@ -14,6 +14,17 @@ use std::time::{Duration, Instant};
 pub enum Driver {
     /// A PulseAudio server (or PipeWire's PulseAudio service), through libpulse.
     Pulse,
+}
+
+/// Taking the robot's own voice out of what the microphone hears.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EchoCancel {
+    /// None: the microphone hears the robot as loud as the room does (the dialog must then
+    /// ignore what is heard while the robot speaks).
+    None,
+    /// The sound server's WebRTC canceller (`module-echo-cancel`), loaded between the microphone
+    /// and the speaker for as long as this runs: the player can talk over the robot.
+    Webrtc,
 }
 
 /// The `audio_io` flags.
@@ -52,7 +63,24 @@ pub struct Config {
     /// How often a lost device is tried again (s).
     #[arg(long, default_value_t = 1.0)]
     pub reopen_s: f64,
+    /// Acoustic echo cancellation between the microphone and the speaker (both must be open).
+    #[arg(long, value_enum, default_value_t = EchoCancel::None)]
+    pub echo_cancel: EchoCancel,
+    /// Yield to the person: when the recognizer hears speech start (`speech/activity`) while the
+    /// robot speaks, its voice stops at once and what it had left to say is held. It goes on
+    /// `--resume-after-s` after the speech ended, unless the sentence was interrupted meanwhile
+    /// (the dialog took a command said over it). Only with a microphone that does not hear the
+    /// robot (`--echo-cancel webrtc`), or the robot pauses for its own voice.
+    #[arg(long, value_name = "true|false", default_value_t = false, action = clap::ArgAction::Set)]
+    pub pause_on_speech: bool,
+    /// How long after the person stopped speaking a paused sentence goes on (s).
+    #[arg(long, default_value_t = 0.8)]
+    pub resume_after_s: f64,
 }
+
+/// The longest a sentence stays paused for speech whose end is never heard (the recognizer
+/// went away): longer than the end-pointer's longest utterance.
+const PAUSED_AT_MOST: Duration = Duration::from_secs(10);
 
 impl Config {
     fn server(&self) -> Option<&str> {
@@ -67,7 +95,66 @@ impl Config {
 #[derive(Debug)]
 pub struct Prepared {
     config: Config,
-    capture: Option<pulse::Capture>,
+    echo: Arc<Echo>,
+    /// The microphone and the echo canceller's generation it was opened on.
+    capture: Option<(pulse::Capture, u64)>,
+}
+
+/// The server's echo canceller when `--echo-cancel` asks for one, shared by the capture and the
+/// playback threads: the devices they open are the canceller's, not the named ones.
+///
+/// When a named device goes away the server unloads the canceller with it (or moves its
+/// streams), so a thread that lost its device loads a fresh one before reopening, unless the
+/// other thread already did since it opened its stream (the generation tells).
+#[derive(Debug)]
+pub struct Echo {
+    config: Config,
+    loaded: Mutex<(Option<pulse::EchoCanceller>, u64)>,
+}
+
+impl Echo {
+    fn new(config: &Config) -> Self {
+        Self {
+            config: config.clone(),
+            loaded: Mutex::new((None, 0)),
+        }
+    }
+
+    /// The source and the sink to open, and the canceller's generation. After the failure of a
+    /// stream opened on generation `failed`, a fresh canceller unless a newer one is loaded;
+    /// otherwise the loaded one, if it still is.
+    fn devices(&self, failed: Option<u64>) -> Result<(String, String, u64), pulse::Error> {
+        let c = &self.config;
+        if c.echo_cancel == EchoCancel::None {
+            return Ok((c.source.clone(), c.sink.clone(), 0));
+        }
+        let mut loaded = self.loaded.lock().unwrap_or_else(|p| p.into_inner());
+        let (canceller, generation) = &mut *loaded;
+        let fresh = match canceller {
+            Some(ec) if failed.is_none_or(|g| *generation > g) => ec.loaded()?,
+            _ => false,
+        };
+        let ec = match canceller {
+            Some(ec) if fresh => ec,
+            _ => {
+                // The old one first: the new one takes its devices' names.
+                *canceller = None;
+                let ec = pulse::EchoCanceller::load(c.server(), &c.source, &c.sink)?;
+                tracing::info!(
+                    "echo cancellation: the sound server's WebRTC canceller between the microphone \
+                 {:?} and the speaker {:?} (module {}: source {:?}, sink {:?})",
+                    c.source,
+                    c.sink,
+                    ec.index(),
+                    ec.source(),
+                    ec.sink()
+                );
+                *generation += 1;
+                canceller.insert(ec)
+            }
+        };
+        Ok((ec.source().to_string(), ec.sink().to_string(), *generation))
+    }
 }
 
 /// The `audio_io` component.
@@ -90,6 +177,9 @@ impl Component for AudioIo {
             i = i
                 .subscribes(&topics::AUDIO_OUT)
                 .subscribes(&topics::SPEECH_SPEAKING);
+            if config.pause_on_speech {
+                i = i.subscribes(&topics::SPEECH_ACTIVITY);
+            }
         }
         i
     }
@@ -126,6 +216,16 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
         config.playback_buffer_ms
     );
     anyhow::ensure!(
+        config.echo_cancel == EchoCancel::None || !(config.no_capture || config.no_playback),
+        "--echo-cancel needs both the microphone and the speaker (no --no-capture or \
+         --no-playback)"
+    );
+    anyhow::ensure!(
+        config.resume_after_s.is_finite() && (0.0..=10.0).contains(&config.resume_after_s),
+        "--resume-after-s must be in 0..=10, got {}",
+        config.resume_after_s
+    );
+    anyhow::ensure!(
         config.reopen_s.is_finite() && config.reopen_s > 0.0,
         "--reopen-s must be > 0, got {}",
         config.reopen_s
@@ -140,6 +240,7 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
             listing: devices.listing(pulse::Kind::Sink),
         }));
     }
+    let echo = Arc::new(Echo::new(&config));
     let capture = if config.no_capture {
         None
     } else {
@@ -150,20 +251,32 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
                 listing: devices.listing(pulse::Kind::Source),
             }));
         }
-        Some(open_capture(&config).map_err(config_error)?)
+        Some(open_capture(&config, &echo, None).map_err(config_error)?)
     };
-    Ok(Prepared { config, capture })
+    Ok(Prepared {
+        config,
+        echo,
+        capture,
+    })
 }
 
-fn open_capture(config: &Config) -> Result<pulse::Capture, pulse::Error> {
-    pulse::Capture::open(
+/// Open the microphone (the canceller's source with `--echo-cancel`; see [`Echo::devices`] for
+/// `failed`); the stream and the canceller's generation.
+fn open_capture(
+    config: &Config,
+    echo: &Echo,
+    failed: Option<u64>,
+) -> Result<(pulse::Capture, u64), pulse::Error> {
+    let (source, _, generation) = echo.devices(failed)?;
+    let capture = pulse::Capture::open(
         config.server(),
-        &config.source,
+        &source,
         config.rate_hz,
         1,
         config.chunk_frames(),
         "robot microphone",
-    )
+    )?;
+    Ok((capture, generation))
 }
 
 /// Whether the named devices are on the server, as the device watcher last saw. A source or a
@@ -227,16 +340,32 @@ enum Heard {
 /// What the bus loop tells the playback thread.
 #[derive(Debug)]
 enum Play {
-    Chunk(AudioChunk),
-    /// Drop what is queued: the utterance was interrupted.
-    Cut,
+    /// A chunk of the robot's voice, numbered.
+    Chunk(u64, AudioChunk),
     /// The generator sent the last chunk of its sentence (what comes next starts another).
     SentenceEnded,
 }
 
+/// What the bus loop tells the playback thread at once (on a channel of its own, looked at
+/// between two slices of a write).
+#[derive(Debug)]
+enum Ctl {
+    /// Drop what is queued and held, and the chunks numbered up to this: the utterance was
+    /// interrupted.
+    Cut(u64),
+    /// Stop playing at once and hold the rest: someone speaks (`--pause-on-speech`).
+    Pause,
+    /// Go on with what was held.
+    Resume,
+}
+
 /// Capture and play until `shutdown`.
 pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
-    let Prepared { config, capture } = prepared;
+    let Prepared {
+        config,
+        echo,
+        capture,
+    } = prepared;
     let stop = Arc::new(AtomicBool::new(false));
     let presence = Arc::new(Presence::default());
     let watcher = {
@@ -249,12 +378,18 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     let mut capture_thread = None;
     if let Some(capture) = capture {
         let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
-        let presence = presence.clone();
+        let (presence, echo) = (presence.clone(), echo.clone());
         capture_thread = Some(
             std::thread::Builder::new()
                 .name("microphone".into())
                 .spawn(move || {
-                    capture_loop(capture, &config, &stop, &presence, &counters, &heard_tx)
+                    let loops = Loops {
+                        config: &config,
+                        echo: &echo,
+                        presence: &presence,
+                        counters: &counters,
+                    };
+                    capture_loop(capture, &loops, &stop, &heard_tx)
                 })?,
         );
     } else {
@@ -265,6 +400,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         None => None,
     };
     let mut play_tx = None;
+    let mut ctl_tx = None;
     let mut play_thread = None;
     let mut out_sub = None;
     let mut speaking_sub = None;
@@ -272,17 +408,56 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         // A second of 100 ms chunks: the generator paces them in real time, so a full queue
         // means the server stopped taking audio.
         let (tx, rx) = std::sync::mpsc::sync_channel::<Play>(10);
-        let (config, counters, presence) =
-            (config.clone(), bus.counters().clone(), presence.clone());
-        play_thread = Some(
-            std::thread::Builder::new()
-                .name("speaker".into())
-                .spawn(move || playback_loop(&config, &presence, &counters, &rx))?,
+        // Control messages are few (one per sentence cut, per pause, per going on) and looked
+        // at every slice: a full queue would be a stuck playback thread.
+        let (ctx, crx) = std::sync::mpsc::sync_channel::<Ctl>(64);
+        let (config, counters, presence, echo) = (
+            config.clone(),
+            bus.counters().clone(),
+            presence.clone(),
+            echo.clone(),
         );
+        play_thread = Some(std::thread::Builder::new().name("speaker".into()).spawn(
+            move || {
+                let loops = Loops {
+                    config: &config,
+                    echo: &echo,
+                    presence: &presence,
+                    counters: &counters,
+                };
+                playback_loop(&loops, &rx, &crx)
+            },
+        )?);
         play_tx = Some(tx);
+        ctl_tx = Some(ctx);
         out_sub = Some(bus.subscriber(&topics::AUDIO_OUT).await?);
         speaking_sub = Some(bus.subscriber(&topics::SPEECH_SPEAKING).await?);
     }
+    let activity_sub = match config.pause_on_speech && !config.no_playback {
+        true => Some(bus.subscriber(&topics::SPEECH_ACTIVITY).await?),
+        false => None,
+    };
+    // Chunks of the robot's voice are numbered: a cut drops those sent before it.
+    let mut seq: u64 = 0;
+    // While paused for someone speaking: when to go on if the sentence was not cut.
+    let mut resume_at: Option<tokio::time::Instant> = None;
+    let resume_after = Duration::from_secs_f64(config.resume_after_s);
+    let tell = |ctl: Ctl| -> anyhow::Result<()> {
+        match &ctl_tx {
+            Some(tx) => match tx.try_send(ctl) {
+                Ok(()) => Ok(()),
+                Err(std::sync::mpsc::TrySendError::Full(c)) => {
+                    bus.counters().incr("playback_control_dropped");
+                    tracing::warn!("the playback thread is stuck: dropped {c:?}");
+                    Ok(())
+                }
+                Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
+                    Err(anyhow::anyhow!("the playback thread ended"))
+                }
+            },
+            None => Ok(()),
+        }
+    };
     tracing::info!(
         "{}{}",
         if config.no_capture {
@@ -341,7 +516,8 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     Ok(c) => c,
                     Err(e) => break Err(e.into()),
                 };
-                if let Some(tx) = &play_tx && let Err(e) = tx.try_send(Play::Chunk(chunk)) {
+                seq += 1;
+                if let Some(tx) = &play_tx && let Err(e) = tx.try_send(Play::Chunk(seq, chunk)) {
                     match e {
                         std::sync::mpsc::TrySendError::Full(_) => {
                             bus.counters().incr("playback_dropped_queue_full");
@@ -357,15 +533,48 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     Ok(e) => e,
                     Err(e) => break Err(e.into()),
                 };
-                let tell = match event.state {
-                    SpeakingState::Interrupted => Some(Play::Cut),
-                    SpeakingState::Finished | SpeakingState::Failed => Some(Play::SentenceEnded),
-                    _ => None,
-                };
-                if let (Some(tell), Some(tx)) = (tell, &play_tx)
-                    && let Err(std::sync::mpsc::TrySendError::Disconnected(_)) = tx.try_send(tell)
+                if event.state == SpeakingState::Interrupted {
+                    resume_at = None;
+                    if let Err(e) = tell(Ctl::Cut(seq)) {
+                        break Err(e);
+                    }
+                }
+                if matches!(event.state, SpeakingState::Finished | SpeakingState::Failed)
+                    && let Some(tx) = &play_tx
+                    && let Err(std::sync::mpsc::TrySendError::Disconnected(_)) =
+                        tx.try_send(Play::SentenceEnded)
                 {
                     break Err(anyhow::anyhow!("the playback thread ended"));
+                }
+            }
+            a = next(&activity_sub) => {
+                let a = match a {
+                    Ok(a) => a,
+                    Err(e) => break Err(e.into()),
+                };
+                // Someone speaks: the robot stops at once, and goes on `--resume-after-s` after
+                // they stopped unless what they said cut its sentence (a command taken over it).
+                let now = tokio::time::Instant::now();
+                resume_at = Some(match a.state {
+                    VoiceState::Started => {
+                        if let Err(e) = tell(Ctl::Pause) {
+                            break Err(e);
+                        }
+                        now + PAUSED_AT_MOST
+                    }
+                    VoiceState::Ended => now + resume_after,
+                    VoiceState::Dropped => now,
+                });
+            }
+            _ = async {
+                match resume_at {
+                    Some(t) => tokio::time::sleep_until(t).await,
+                    None => std::future::pending().await,
+                }
+            } => {
+                resume_at = None;
+                if let Err(e) = tell(Ctl::Resume) {
+                    break Err(e);
                 }
             }
             _ = shutdown.wait() => break Ok(()),
@@ -373,6 +582,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     };
     stop.store(true, Ordering::Relaxed);
     drop(play_tx);
+    drop(ctl_tx);
     // Both threads notice within one chunk or one reopen attempt; they are not waited for longer
     // than that (a stuck server must not hold the shutdown).
     for t in [capture_thread, play_thread, Some(watcher)]
@@ -397,15 +607,27 @@ async fn next<T: interfaces::Message>(
     }
 }
 
+/// What the capture and the playback threads share.
+struct Loops<'a> {
+    config: &'a Config,
+    echo: &'a Echo,
+    presence: &'a Presence,
+    counters: &'a interfaces::bus::Counters,
+}
+
 /// Read the microphone until `stop`, reopening it when it fails.
 fn capture_loop(
-    mut capture: pulse::Capture,
-    config: &Config,
+    (mut capture, mut generation): (pulse::Capture, u64),
+    loops: &Loops,
     stop: &AtomicBool,
-    presence: &Presence,
-    counters: &interfaces::bus::Counters,
     tx: &tokio::sync::mpsc::Sender<Heard>,
 ) {
+    let Loops {
+        config,
+        echo,
+        presence,
+        counters,
+    } = *loops;
     let mut samples = Vec::new();
     while !stop.load(Ordering::Relaxed) {
         let read = match capture.read(&mut samples) {
@@ -434,13 +656,13 @@ fn capture_loop(
                     if presence.source_missing.load(Ordering::Relaxed) {
                         Err(gone(pulse::Kind::Source, &config.source))
                     } else {
-                        open_capture(config)
+                        open_capture(config, echo, Some(generation))
                     }
                 };
                 let Some(again) = reopen(config, stop, open) else {
                     return;
                 };
-                capture = again;
+                (capture, generation) = again;
                 if tx.blocking_send(Heard::Back).is_err() {
                     return;
                 }
@@ -482,11 +704,33 @@ fn reopen<T>(
 struct Speaker {
     stream: pulse::Playback,
     /// When what was written so far has played (this thread's count, without the device's own
-    /// latency); `None` before the first chunk and after a cut.
+    /// latency); `None` before the first chunk, after a cut and while paused.
     queued_until: Option<Instant>,
     /// Whether a sentence is under way (a chunk written, and the generator has not said it
     /// ended): a chunk of it that finds the queue empty came too late, an under-run.
     in_sentence: bool,
+    /// The last samples written (interleaved), enough to cover the server's buffer: what a
+    /// pause takes back from the server is played from here when the robot goes on.
+    recent: std::collections::VecDeque<i16>,
+    /// While paused: the samples to play when the robot goes on (what the server had not
+    /// played, then what came since).
+    held: Option<Vec<i16>>,
+}
+
+/// The playback thread's state: the speaker (opened for the format of the chunks that come),
+/// and what the bus loop said.
+struct Player<'a> {
+    loops: &'a Loops<'a>,
+    ctl: &'a std::sync::mpsc::Receiver<Ctl>,
+    speaker: Option<Speaker>,
+    /// After a failure, the next attempt to open the speaker is not before this.
+    retry_at: Instant,
+    lost: bool,
+    /// The echo canceller's generation the last stream was opened on.
+    generation: u64,
+    buffer: Duration,
+    /// Chunks numbered up to this were cut: they are not played.
+    cut_upto: u64,
 }
 
 /// Play what the bus loop sends until it hangs up.
@@ -495,164 +739,286 @@ struct Speaker {
 /// generator sends its chunks in real time: so the first chunk of a sentence is preceded by
 /// enough silence to fill that buffer at once. The sentence starts at once (after the silence),
 /// short sounds play without waiting for more, and the buffer keeps its cushion against late
-/// chunks for the whole sentence.
+/// chunks for the whole sentence. Audio is written in slices of [`SLICE`], and the bus loop's
+/// control messages (cut, pause, go on) are looked at between two slices: a write that waits for
+/// room in the server's buffer never holds them up for longer than a slice.
 fn playback_loop(
-    config: &Config,
-    presence: &Presence,
-    counters: &interfaces::bus::Counters,
+    loops: &Loops,
     rx: &std::sync::mpsc::Receiver<Play>,
+    ctl: &std::sync::mpsc::Receiver<Ctl>,
 ) {
-    let mut speaker: Option<Speaker> = None;
-    // After a failure, the next attempt to open the speaker is not before this.
-    let mut retry_at = Instant::now();
-    let mut lost = false;
-    let buffer = Duration::from_millis(u64::from(config.playback_buffer_ms));
+    let mut p = Player {
+        loops,
+        ctl,
+        speaker: None,
+        retry_at: Instant::now(),
+        lost: false,
+        generation: 0,
+        buffer: Duration::from_millis(u64::from(loops.config.playback_buffer_ms)),
+        cut_upto: 0,
+    };
     loop {
-        let missing = presence.sink_missing.load(Ordering::Relaxed);
-        if missing && speaker.is_some() {
-            speaker_failed(
-                config,
-                counters,
-                &mut speaker,
-                &mut lost,
-                &gone(pulse::Kind::Sink, &config.sink),
-            );
+        p.control(&mut Vec::new());
+        if p.loops.presence.sink_missing.load(Ordering::Relaxed) && p.speaker.is_some() {
+            let e = gone(pulse::Kind::Sink, &p.loops.config.sink);
+            p.failed(&e);
         }
-        let cmd = match rx.recv_timeout(Duration::from_millis(200)) {
+        let cmd = match rx.recv_timeout(SLICE) {
             Ok(cmd) => cmd,
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
         };
         match cmd {
             Play::SentenceEnded => {
-                if let Some(s) = speaker.as_mut() {
+                if let Some(s) = p.speaker.as_mut() {
                     s.in_sentence = false;
                 }
             }
-            Play::Cut => {
-                if let Some(s) = speaker.as_mut()
-                    && s.queued_until.take().is_some()
-                {
-                    s.in_sentence = false;
-                    counters.incr("playback_cut");
-                    if let Err(e) = s.stream.flush() {
-                        speaker_failed(config, counters, &mut speaker, &mut lost, &e);
-                        retry_at = Instant::now() + Duration::from_secs_f64(config.reopen_s);
-                    }
-                }
-            }
-            Play::Chunk(chunk) => {
-                let (Some(samples), Ok(channels)) = (chunk.samples(), u8::try_from(chunk.channels))
-                else {
-                    counters.incr("playback_malformed");
-                    continue;
-                };
-                if channels == 0
-                    || chunk.sample_rate_hz == 0
-                    || !samples.len().is_multiple_of(channels as usize)
-                {
-                    counters.incr("playback_malformed");
-                    continue;
-                }
-                // (Re)open the speaker for this chunk's format.
-                let fits = speaker.as_ref().is_some_and(|s| {
-                    s.stream.rate_hz() == chunk.sample_rate_hz && s.stream.channels() == channels
-                });
-                if !fits {
-                    if let Some(mut old) = speaker.take()
-                        && old.queued_until.is_some_and(|t| t > Instant::now())
-                    {
-                        let _ = old.stream.drain();
-                    }
-                    if Instant::now() < retry_at || missing {
-                        counters.incr("playback_dropped_device_lost");
-                        continue;
-                    }
-                    match pulse::Playback::open(
-                        config.server(),
-                        &config.sink,
-                        chunk.sample_rate_hz,
-                        channels,
-                        buffer,
-                        "robot voice",
-                    ) {
-                        Ok(stream) => {
-                            if lost {
-                                tracing::info!("the speaker {:?} is back", config.sink);
-                                lost = false;
-                            }
-                            speaker = Some(Speaker {
-                                stream,
-                                queued_until: None,
-                                in_sentence: false,
-                            });
-                        }
-                        Err(e) => {
-                            if !lost {
-                                tracing::warn!(
-                                    "cannot open the speaker {:?}: {e}; the robot's voice is \
-                                     dropped until it opens (tried every {} s)",
-                                    config.sink,
-                                    config.reopen_s
-                                );
-                                counters.incr("speaker_lost");
-                                lost = true;
-                            }
-                            counters.incr("playback_dropped_device_lost");
-                            retry_at = Instant::now() + Duration::from_secs_f64(config.reopen_s);
-                            continue;
-                        }
-                    }
-                }
-                let Some(s) = speaker.as_mut() else { continue };
-                let now = Instant::now();
-                let duration = Duration::from_secs_f64(chunk.duration_s());
-                let written = match s.queued_until {
-                    Some(until) if until > now => s.stream.write(&samples).map(|()| until),
-                    _ => {
-                        if s.in_sentence {
-                            counters.incr("playback_underruns");
-                            tracing::debug!("the speaker ran dry in the middle of a sentence");
-                        }
-                        // A sentence starts: silence first, up to the server's start threshold.
-                        let pad = buffer.saturating_sub(duration);
-                        let frames = (pad.as_secs_f64() * f64::from(chunk.sample_rate_hz)) as usize;
-                        let mut padded = vec![0i16; frames * channels as usize];
-                        padded.extend_from_slice(&samples);
-                        s.stream.write(&padded).map(|()| now + pad)
-                    }
-                };
-                match written {
-                    Ok(from) => {
-                        counters.incr("playback_chunks");
-                        s.queued_until = Some(from + duration);
-                        s.in_sentence = true;
-                    }
-                    Err(e) => {
-                        speaker_failed(config, counters, &mut speaker, &mut lost, &e);
-                        retry_at = Instant::now() + Duration::from_secs_f64(config.reopen_s);
-                    }
-                }
-            }
+            Play::Chunk(seq, _) if seq <= p.cut_upto => {}
+            Play::Chunk(_, chunk) => p.chunk(&chunk),
         }
     }
 }
 
-fn speaker_failed(
-    config: &Config,
-    counters: &interfaces::bus::Counters,
-    speaker: &mut Option<Speaker>,
-    lost: &mut bool,
-    e: &pulse::Error,
-) {
-    tracing::warn!(
-        "lost the speaker {:?}: {e}; opening it again every {} s",
-        config.sink,
-        config.reopen_s
-    );
-    counters.incr("speaker_lost");
-    *speaker = None;
-    *lost = true;
+/// How much is written to the server at once.
+const SLICE: Duration = Duration::from_millis(20);
+
+impl Player<'_> {
+    /// Act on the control messages that came; `rest` is what the caller has not written yet of
+    /// what it is writing (a pause holds it, a cut drops it). Whether to stop writing.
+    fn control(&mut self, rest: &mut Vec<i16>) -> bool {
+        let mut stop = false;
+        while let Ok(c) = self.ctl.try_recv() {
+            match c {
+                Ctl::Cut(upto) => {
+                    self.cut_upto = self.cut_upto.max(upto);
+                    rest.clear();
+                    stop = true;
+                    self.cut();
+                }
+                Ctl::Pause => {
+                    let taken = std::mem::take(rest);
+                    stop = true;
+                    self.pause(taken);
+                }
+                Ctl::Resume => self.resume(),
+            }
+        }
+        stop
+    }
+
+    fn failed(&mut self, e: &pulse::Error) {
+        let config = self.loops.config;
+        tracing::warn!(
+            "lost the speaker {:?}: {e}; opening it again every {} s",
+            config.sink,
+            config.reopen_s
+        );
+        self.loops.counters.incr("speaker_lost");
+        self.speaker = None;
+        self.lost = true;
+        self.retry_at = Instant::now() + Duration::from_secs_f64(config.reopen_s);
+    }
+
+    /// Drop what is queued and held: the sentence was interrupted.
+    fn cut(&mut self) {
+        let Some(s) = self.speaker.as_mut() else {
+            return;
+        };
+        let playing = s.queued_until.take().is_some();
+        let held = s.held.take().is_some();
+        if playing || held {
+            s.in_sentence = false;
+            self.loops.counters.incr("playback_cut");
+            if let Err(e) = s.stream.flush() {
+                self.failed(&e);
+            }
+        }
+    }
+
+    /// Stop playing at once, keeping what was not played (and `unwritten`) for [`Self::resume`].
+    fn pause(&mut self, unwritten: Vec<i16>) {
+        let Some(s) = self.speaker.as_mut() else {
+            return;
+        };
+        if let Some(held) = s.held.as_mut() {
+            held.extend(unwritten);
+            return;
+        }
+        if s.queued_until.is_none() && unwritten.is_empty() {
+            return;
+        }
+        // What the server holds and has not played yet, taken back.
+        let queued_us = s.stream.latency_us().unwrap_or(0);
+        if let Err(e) = s.stream.flush() {
+            self.failed(&e);
+            return;
+        }
+        let channels = usize::from(s.stream.channels());
+        let frames = (queued_us as f64 * 1e-6 * f64::from(s.stream.rate_hz())) as usize;
+        let n = (frames * channels).min(s.recent.len());
+        let mut held: Vec<i16> = s.recent.iter().skip(s.recent.len() - n).copied().collect();
+        held.extend(unwritten);
+        s.recent.clear();
+        s.queued_until = None;
+        s.held = Some(held);
+        self.loops.counters.incr("playback_paused");
+    }
+
+    /// Go on with what a pause held.
+    fn resume(&mut self) {
+        let Some(s) = self.speaker.as_mut() else {
+            return;
+        };
+        let Some(held) = s.held.take() else {
+            return;
+        };
+        // The server's buffer is empty: it starts again like a sentence (not an under-run).
+        s.in_sentence = false;
+        if !held.is_empty() {
+            self.write(held);
+        }
+    }
+
+    /// A chunk of the robot's voice: played, or held while paused.
+    fn chunk(&mut self, chunk: &AudioChunk) {
+        let counters = self.loops.counters;
+        let (Some(samples), Ok(channels)) = (chunk.samples(), u8::try_from(chunk.channels)) else {
+            counters.incr("playback_malformed");
+            return;
+        };
+        if channels == 0
+            || chunk.sample_rate_hz == 0
+            || !samples.len().is_multiple_of(channels as usize)
+        {
+            counters.incr("playback_malformed");
+            return;
+        }
+        // (Re)open the speaker for this chunk's format.
+        let fits = self.speaker.as_ref().is_some_and(|s| {
+            s.stream.rate_hz() == chunk.sample_rate_hz && s.stream.channels() == channels
+        });
+        if !fits && !self.open(chunk.sample_rate_hz, channels) {
+            counters.incr("playback_dropped_device_lost");
+            return;
+        }
+        let Some(s) = self.speaker.as_mut() else {
+            return;
+        };
+        if let Some(held) = s.held.as_mut() {
+            held.extend(samples);
+            return;
+        }
+        self.write(samples);
+    }
+
+    /// Open the speaker for a format (closing the one open, after it played what it holds).
+    fn open(&mut self, rate_hz: u32, channels: u8) -> bool {
+        let config = self.loops.config;
+        if let Some(mut old) = self.speaker.take()
+            && old.queued_until.is_some_and(|t| t > Instant::now())
+        {
+            let _ = old.stream.drain();
+        }
+        if Instant::now() < self.retry_at
+            || self.loops.presence.sink_missing.load(Ordering::Relaxed)
+        {
+            return false;
+        }
+        let failed = self.lost.then_some(self.generation);
+        let opened = self.loops.echo.devices(failed).and_then(|(_, sink, g)| {
+            self.generation = g;
+            pulse::Playback::open(
+                config.server(),
+                &sink,
+                rate_hz,
+                channels,
+                self.buffer,
+                "robot voice",
+            )
+        });
+        match opened {
+            Ok(stream) => {
+                if self.lost {
+                    tracing::info!("the speaker {:?} is back", config.sink);
+                    self.lost = false;
+                }
+                self.speaker = Some(Speaker {
+                    stream,
+                    queued_until: None,
+                    in_sentence: false,
+                    recent: Default::default(),
+                    held: None,
+                });
+                true
+            }
+            Err(e) => {
+                if !self.lost {
+                    tracing::warn!(
+                        "cannot open the speaker {:?}: {e}; the robot's voice is dropped until \
+                         it opens (tried every {} s)",
+                        config.sink,
+                        config.reopen_s
+                    );
+                    self.loops.counters.incr("speaker_lost");
+                    self.lost = true;
+                }
+                self.retry_at = Instant::now() + Duration::from_secs_f64(config.reopen_s);
+                false
+            }
+        }
+    }
+
+    /// Write samples of the open speaker's format, slice by slice, a sentence's start padded
+    /// with silence; a control message between two slices may stop it.
+    fn write(&mut self, samples: Vec<i16>) {
+        let counters = self.loops.counters;
+        let buffer = self.buffer;
+        let Some(s) = self.speaker.as_mut() else {
+            return;
+        };
+        let (rate, channels) = (s.stream.rate_hz(), usize::from(s.stream.channels()));
+        let duration = |n: usize| Duration::from_secs_f64((n / channels) as f64 / f64::from(rate));
+        let now = Instant::now();
+        let (mut until, mut data) = match s.queued_until {
+            Some(until) if until > now => (until, samples),
+            _ => {
+                if s.in_sentence {
+                    counters.incr("playback_underruns");
+                    tracing::debug!("the speaker ran dry in the middle of a sentence");
+                }
+                // A sentence starts: silence first, up to the server's start threshold.
+                let pad = buffer.saturating_sub(duration(samples.len()));
+                let frames = (pad.as_secs_f64() * f64::from(rate)) as usize;
+                let mut padded = vec![0i16; frames * channels];
+                padded.extend(samples);
+                (now, padded)
+            }
+        };
+        s.in_sentence = true;
+        counters.incr("playback_chunks");
+        let slice = ((SLICE.as_secs_f64() * f64::from(rate)) as usize).max(1) * channels;
+        let keep = ((buffer + SLICE * 5).as_secs_f64() * f64::from(rate)) as usize * channels;
+        while !data.is_empty() {
+            let mut rest = data.split_off(slice.min(data.len()));
+            let Some(s) = self.speaker.as_mut() else {
+                return;
+            };
+            if let Err(e) = s.stream.write(&data) {
+                self.failed(&e);
+                return;
+            }
+            until = until.max(Instant::now()) + duration(data.len());
+            s.queued_until = Some(until);
+            s.recent.extend(data.iter().copied());
+            let excess = s.recent.len().saturating_sub(keep);
+            s.recent.drain(..excess);
+            if self.control(&mut rest) {
+                return;
+            }
+            data = rest;
+        }
+    }
 }
 
 #[cfg(test)]
@@ -678,6 +1044,11 @@ mod tests {
             (&["--chunk-ms", "0"][..], "--chunk-ms"),
             (&["--playback-buffer-ms", "5"][..], "--playback-buffer-ms"),
             (&["--reopen-s", "0"][..], "--reopen-s"),
+            (&["--resume-after-s", "-1"][..], "--resume-after-s"),
+            (
+                &["--echo-cancel", "webrtc", "--no-playback"][..],
+                "--echo-cancel needs both",
+            ),
         ] {
             let e = prepare(config(args)).unwrap_err().to_string();
             assert!(e.contains(needle), "{args:?}: {e}");

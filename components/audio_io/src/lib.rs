@@ -24,9 +24,21 @@
 //!   the bus fell behind the device), `playback_chunks`, `playback_underruns` (the speaker's
 //!   buffer ran dry in the middle of an utterance), `playback_malformed` (an `audio/out` chunk
 //!   with an odd byte count, no channels or no rate), `playback_dropped_device_lost`,
-//!   `playback_dropped_queue_full`, `playback_cut` (speech cut short by an interruption).
+//!   `playback_dropped_queue_full`, `playback_cut` (speech cut short by an interruption),
+//!   `playback_paused` (stopped for someone speaking), `playback_control_dropped`.
 //! - **Cutting the voice short**: when `speech/speaking` says an utterance was interrupted (the
 //!   player said "stop" over it), what is still queued in the server is dropped at once, not
-//!   played out.
+//!   played out. Audio goes to the server in 20 ms slices, so a cut (or a pause) waits for one
+//!   slice at most.
+//! - **Echo cancellation** (`--echo-cancel webrtc`): the sound server's WebRTC canceller
+//!   (`module-echo-cancel`, without gain control) is loaded between the named microphone and
+//!   speaker while this runs; the streams open its source and sink, so the robot's voice is
+//!   taken out of `audio/in` and anything else in the room stays. A canceller left by a killed
+//!   `audio_io` is replaced; one the server unloaded with a lost device is loaded again when the
+//!   device is back.
+//! - **Yielding to the person** (`--pause-on-speech true`, behind an echo canceller): when
+//!   `speech/activity` says someone started speaking while the robot speaks, its voice stops at
+//!   once (what the server had not played is taken back) and goes on `--resume-after-s` after
+//!   the speech ended, unless the sentence was interrupted meanwhile (a command said over it).
 
 pub mod component;

@@ -3,7 +3,7 @@
 
 use crate::machine::{Action, Dialog, DialogConfig, Heard};
 use interfaces::msg::command::{CommandSource, GameCommand};
-use interfaces::msg::speech::{SayRequest, SpeakingState};
+use interfaces::msg::speech::{SayRequest, SpeakingState, VoiceState};
 use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
@@ -14,7 +14,7 @@ use std::time::Duration;
 #[derive(Debug, Clone, clap::Args)]
 pub struct Config {
     /// TOML file with the dialog settings (`high`, `low`, `answer_timeout_s`, `repeat_after`,
-    /// `repeat_window_s`, `echo_guard_s`); flags override it.
+    /// `repeat_window_s`, `echo_guard_s`, `barge_in`); flags override it.
     #[arg(long)]
     pub settings: Option<PathBuf>,
     /// Confidence at or above which a command is accepted at once.
@@ -26,6 +26,11 @@ pub struct Config {
     /// How long to wait for a yes or no (s).
     #[arg(long)]
     pub answer_timeout_s: Option<f64>,
+    /// Let the player talk over the robot: a sure command heard while it speaks silences it and
+    /// is carried out. Only for a microphone with the robot's voice taken out (`audio_io
+    /// --echo-cancel webrtc`); otherwise what is heard while the robot speaks is ignored.
+    #[arg(long, value_name = "true|false")]
+    pub barge_in: Option<bool>,
     /// The components that carry out `game/command` (comma-separated; empty: none). While none
     /// of them subscribes to it (one is restarting), a command is held, the robot says "One
     /// moment, please.", and the command goes out as soon as one is back. The commands sent in
@@ -118,6 +123,9 @@ pub fn settings(args: &Config) -> anyhow::Result<DialogConfig> {
     if let Some(x) = args.answer_timeout_s {
         cfg.answer_timeout_s = x;
     }
+    if let Some(x) = args.barge_in {
+        cfg.barge_in = x;
+    }
     cfg.validate()?;
     Ok(cfg)
 }
@@ -137,6 +145,7 @@ impl Component for Dialogs {
             .subscribes(&topics::SPEECH_UTTERANCE)
             .subscribes(&topics::GAME_ANSWER)
             .subscribes(&topics::SPEECH_SPEAKING)
+            .subscribes(&topics::SPEECH_ACTIVITY)
             .publishes(&topics::GAME_COMMAND)
             .publishes(&topics::SPEECH_SAY)
     }
@@ -184,12 +193,14 @@ pub async fn run(
         high = cfg.high,
         low = cfg.low,
         timeout_s = cfg.answer_timeout_s,
+        barge_in = cfg.barge_in,
         "dialog thresholds"
     );
     let mut dialog = Dialog::new(cfg)?;
     let utterances = bus.subscriber(&topics::SPEECH_UTTERANCE).await?;
     let answers = bus.subscriber(&topics::GAME_ANSWER).await?;
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
+    let activity = bus.subscriber(&topics::SPEECH_ACTIVITY).await?;
     let commands = bus.publisher(&topics::GAME_COMMAND).await?;
     let say = bus.publisher(&topics::SPEECH_SAY).await?;
     let mut readers = interfaces::liveliness::Readers::watch(&bus, &topics::GAME_COMMAND).await?;
@@ -209,17 +220,24 @@ pub async fn run(
             u = utterances.recv() => {
                 let u = u?;
                 tracing::info!("heard {:?} (confidence {:.2}, {:?})", u.text, u.confidence, u.command);
-                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns })
+                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns, stream_start_s: u.stream_start_s })
             }
             a = answers.recv() => dialog.panel_answer(now(), a?.yes),
             s = speaking.recv() => {
                 let s = s?;
                 match s.state {
-                    SpeakingState::Started => dialog.robot_started_speaking(now(), s.duration_s),
+                    SpeakingState::Started => dialog.robot_started_speaking(now(), s.duration_s, &s.text),
                     SpeakingState::Finished | SpeakingState::Interrupted | SpeakingState::Failed => {
                         dialog.robot_speaking(now(), false)
                     }
                     SpeakingState::Queued | SpeakingState::Dropped => {}
+                }
+                vec![]
+            }
+            a = activity.recv() => {
+                let a = a?;
+                if a.state == VoiceState::Started {
+                    dialog.speech_started(a.stream_s);
                 }
                 vec![]
             }
@@ -335,6 +353,18 @@ pub async fn run(
                         id: say_id,
                         text,
                         priority,
+                    })
+                    .await?;
+                }
+                Action::Hush => {
+                    say_id += 1;
+                    tracing::info!("the player talks over the robot: silencing it");
+                    bus.counters().incr("barge_ins");
+                    say.publish(&mut SayRequest {
+                        header: Default::default(),
+                        id: say_id,
+                        text: String::new(),
+                        priority: interfaces::msg::speech::Priority::Urgent,
                     })
                     .await?;
                 }

@@ -16,6 +16,14 @@
 //! - A yes or a no with no question pending is ignored (counted).
 //! - Utterances heard while the robot speaks, or within `echo_guard_s` after, are ignored: they
 //!   are most likely the robot hearing itself.
+//! - **Barge-in** (`barge_in`, for a microphone whose signal has the robot's voice taken out by
+//!   an echo canceller): a command heard over the robot with confidence ≥ `high` is taken. The
+//!   robot is silenced first ([`Action::Hush`]), then the command is handled as above. What the
+//!   canceller lets through of the robot's voice is not taken for the player's: the utterance
+//!   must be one the recognizer heard as sustained speech ([`Dialog::speech_started`]; the
+//!   canceller's leaks while it adapts are short bursts), and words that the robot is saying, or
+//!   said within `echo_guard_s`, are still ignored ("I'm going to touch the ball" contains a
+//!   command). Anything less sure is ignored, as without barge-in.
 
 use interfaces::msg::command::{Command, Game};
 use interfaces::msg::speech::Priority;
@@ -31,6 +39,7 @@ pub struct DialogConfig {
     pub repeat_after: u32,
     pub repeat_window_s: f64,
     pub echo_guard_s: f64,
+    pub barge_in: bool,
 }
 
 impl Default for DialogConfig {
@@ -42,6 +51,7 @@ impl Default for DialogConfig {
             repeat_after: 2,
             repeat_window_s: 15.0,
             echo_guard_s: 0.5,
+            barge_in: false,
         }
     }
 }
@@ -82,6 +92,8 @@ pub struct Heard {
     /// When the words were heard (the utterance's stamp): the command it becomes keeps it, so
     /// the Executive knows a command sent again after a restart.
     pub stamp_ns: i64,
+    /// Where the utterance starts on the recognizer's stream (s).
+    pub stream_start_s: f64,
 }
 
 /// A command the dialog lets through.
@@ -114,6 +126,8 @@ pub enum Action {
         priority: Priority,
     },
     Ignored(IgnoreReason),
+    /// Silence the robot now: the player talked over it (barge-in).
+    Hush,
     /// A pending question ended without a command (no, time-out, superseded).
     Dropped(Command),
 }
@@ -137,6 +151,22 @@ pub struct Dialog {
     /// the dialog must not stay deaf.
     speaking_until_s: f64,
     quiet_since_s: f64,
+    /// The words of the robot's sentences since it was last quiet for `echo_guard_s`.
+    robot_words: Vec<Vec<String>>,
+    /// Where the last utterances the recognizer heard as sustained speech start (s on its
+    /// stream), newest last.
+    sustained: std::collections::VecDeque<f64>,
+}
+
+/// Words the grammars allow around a command ("robot, please stop").
+const FILLERS: &[&str] = &["robot", "please"];
+
+/// Lowercase words, without punctuation ("I'm going." -> ["i'm", "going"]).
+fn words(text: &str) -> Vec<String> {
+    text.split(|c: char| !(c.is_alphanumeric() || c == '\''))
+        .filter(|w| !w.is_empty())
+        .map(str::to_lowercase)
+        .collect()
 }
 
 /// How long after its audio's end a sentence still counts as spoken (the generator's report of
@@ -155,11 +185,17 @@ impl Dialog {
             speaking: false,
             speaking_until_s: f64::NEG_INFINITY,
             quiet_since_s: f64::NEG_INFINITY,
+            robot_words: Vec::new(),
+            sustained: Default::default(),
         })
     }
 
-    /// The robot started a sentence of `duration_s` seconds of audio (0: unknown) at `now_s`.
-    pub fn robot_started_speaking(&mut self, now_s: f64, duration_s: f64) {
+    /// The robot started saying `text`, `duration_s` seconds of audio (0: unknown), at `now_s`.
+    pub fn robot_started_speaking(&mut self, now_s: f64, duration_s: f64, text: &str) {
+        if !self.robot_heard_at(now_s) {
+            self.robot_words.clear();
+        }
+        self.robot_words.push(words(text));
         let d = if duration_s.is_finite() && duration_s > 0.0 {
             duration_s.min(SPEAKING_MAX_S) + SPEAKING_SLACK_S
         } else {
@@ -177,6 +213,35 @@ impl Dialog {
             self.robot_speaking(until, false);
         }
         self.speaking
+    }
+
+    /// The recognizer heard sustained speech start at `stream_s` on its stream (not a click, a
+    /// cough, or what an echo canceller lets through of the robot): only such an utterance may
+    /// be taken over the robot.
+    pub fn speech_started(&mut self, stream_s: f64) {
+        if self.sustained.len() == 16 {
+            self.sustained.pop_front();
+        }
+        self.sustained.push_back(stream_s);
+    }
+
+    /// Whether what is heard at `now_s` may be the robot itself: it speaks, or stopped less than
+    /// `echo_guard_s` ago.
+    fn robot_heard_at(&mut self, now_s: f64) -> bool {
+        self.speaking_at(now_s) || now_s - self.quiet_since_s < self.cfg.echo_guard_s
+    }
+
+    /// Whether `text` is words of what the robot is saying or just said.
+    fn robot_said(&self, text: &str) -> bool {
+        let heard: Vec<String> = words(text)
+            .into_iter()
+            .filter(|w| !FILLERS.contains(&w.as_str()))
+            .collect();
+        !heard.is_empty()
+            && self
+                .robot_words
+                .iter()
+                .any(|s| s.windows(heard.len()).any(|w| w == heard.as_slice()))
     }
 
     /// The command awaiting a yes or no, if any.
@@ -258,9 +323,22 @@ impl Dialog {
     /// A recognized utterance at `now_s`.
     pub fn heard(&mut self, now_s: f64, h: Heard) -> Vec<Action> {
         let mut out = Vec::new();
-        if self.speaking_at(now_s) || now_s - self.quiet_since_s < self.cfg.echo_guard_s {
-            out.push(Action::Ignored(IgnoreReason::RobotSpeaking));
-            return out;
+        if self.robot_heard_at(now_s) {
+            let barge_in = self.cfg.barge_in
+                && h.command != Command::None
+                && h.confidence >= self.cfg.high
+                && self
+                    .sustained
+                    .iter()
+                    .any(|&s| (s - h.stream_start_s).abs() < 0.011)
+                && !self.robot_said(&h.text);
+            if !barge_in {
+                out.push(Action::Ignored(IgnoreReason::RobotSpeaking));
+                return out;
+            }
+            if self.speaking {
+                out.push(Action::Hush);
+            }
         }
         if h.command == Command::None {
             self.miss(now_s, IgnoreReason::OutOfGrammar, &mut out);
@@ -334,6 +412,7 @@ mod tests {
             confidence,
             command,
             stamp_ns: 0,
+            stream_start_s: 0.0,
         }
     }
     fn dialog() -> Dialog {
@@ -485,6 +564,71 @@ mod tests {
     }
 
     #[test]
+    fn with_barge_in_a_sure_command_over_the_robot_silences_it_and_is_taken() {
+        let mut d = Dialog::new(DialogConfig {
+            barge_in: true,
+            ..DialogConfig::default()
+        })
+        .unwrap();
+        d.robot_started_speaking(0.0, 4.0, "Great, let's play! Show me the ball.");
+        // A short burst heard as a sure "no" (what the echo canceller lets through while it
+        // adapts): not sustained speech, ignored.
+        let burst = Heard {
+            stream_start_s: 12.0,
+            ..heard(Command::No, 0.8)
+        };
+        assert_eq!(
+            d.heard(1.0, burst),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        // The player says "stop" over the robot: sustained speech.
+        d.speech_started(13.0);
+        let stop = Heard {
+            stream_start_s: 13.0,
+            ..heard(Command::Stop, 0.9)
+        };
+        let a = d.heard(1.5, stop);
+        assert_eq!(a[0], Action::Hush, "{a:?}");
+        assert_eq!(published(&a), vec![(Command::Stop, false)]);
+        d.speech_started(0.0);
+        // Less sure: ignored, never asked about over the robot's voice.
+        d.robot_started_speaking(10.0, 4.0, "I'm looking for the ball.");
+        assert_eq!(
+            d.heard(11.0, heard(Command::TrackBall, 0.5)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        // The robot's own words, however sure, are its echo: while it says them and within the
+        // echo guard after.
+        d.robot_started_speaking(20.0, 2.0, "I'm going to touch the ball.");
+        let robot = |c: f64| Heard {
+            text: "robot touch the ball".into(),
+            ..heard(Command::TouchBall, c)
+        };
+        assert_eq!(
+            d.heard(21.0, robot(0.95)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        d.robot_speaking(22.0, false);
+        assert_eq!(
+            d.heard(22.3, robot(0.95)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        // Just after it stopped, a sure command of other words is taken without a hush.
+        let a = d.heard(22.4, heard(Command::ScanBall, 0.9));
+        assert_eq!(published(&a), vec![(Command::ScanBall, false)]);
+        assert!(!a.contains(&Action::Hush));
+        // Once the robot was quiet for the guard, its old words are the player's again.
+        assert_eq!(published(&d.heard(30.0, robot(0.95))).len(), 1);
+        // Without barge-in, the same "stop" over the robot is ignored.
+        let mut d = dialog();
+        d.robot_started_speaking(0.0, 4.0, "Great, let's play!");
+        assert_eq!(
+            d.heard(1.5, heard(Command::Stop, 0.99)),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+    }
+
+    #[test]
     fn bad_thresholds_are_refused_and_config_reads_from_toml() {
         let bad = DialogConfig {
             low: 0.8,
@@ -510,13 +654,14 @@ mod tests {
         // The speech generator died mid-sentence: no Finished ever comes. The dialog hears the
         // person again once the sentence's audio would have ended (and the echo guard after).
         let mut d = Dialog::new(DialogConfig::default()).unwrap();
-        d.robot_started_speaking(10.0, 1.6);
+        d.robot_started_speaking(10.0, 1.6, "I see the ball.");
         let touch = || Heard {
             game: Game::Touch,
             text: "touch the ball".into(),
             confidence: 0.95,
             command: Command::TouchBall,
             stamp_ns: 0,
+            stream_start_s: 0.0,
         };
         assert_eq!(
             d.heard(11.0, touch()),
@@ -530,7 +675,7 @@ mod tests {
             "{out:?}"
         );
         // A start with no duration counts for SPEAKING_MAX_S at most.
-        d.robot_started_speaking(20.0, 0.0);
+        d.robot_started_speaking(20.0, 0.0, "Hello.");
         assert_eq!(
             d.heard(20.0 + SPEAKING_MAX_S - 1.0, touch()),
             vec![Action::Ignored(IgnoreReason::RobotSpeaking)]

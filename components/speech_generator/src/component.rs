@@ -103,6 +103,21 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
         if current.is_none()
             && let Some(req) = queue.start_next()
         {
+            if req.text.trim().is_empty() {
+                // Nothing to say: an urgent one of these only silences the robot (the player
+                // talked over it), which pushing it into the queue already did.
+                tracing::info!(id = req.id, "nothing to say ({:?})", req.priority);
+                speaking
+                    .publish(&mut event(
+                        &req,
+                        SpeakingState::Finished,
+                        0.0,
+                        "nothing to say",
+                    ))
+                    .await?;
+                queue.done();
+                continue;
+            }
             let text = req.text.clone();
             let v = voice.clone();
             let synth =

@@ -9,7 +9,7 @@ use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
 use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
-use interfaces::msg::speech::Utterance;
+use interfaces::msg::speech::{Utterance, VoiceActivity, VoiceState};
 use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
@@ -98,6 +98,7 @@ impl Component for SpeechRecognition {
         Interface::new(Self::NAME)
             .subscribes(&topics::AUDIO_IN)
             .publishes(&topics::SPEECH_UTTERANCE)
+            .publishes(&topics::SPEECH_ACTIVITY)
     }
 
     /// Load the grammar and the acoustic model (seconds) before joining the bus.
@@ -180,10 +181,22 @@ fn print(msg: &Utterance) {
     }
 }
 
+/// How much speech an utterance holds before `speech/activity` says it started (s).
+pub const SUSTAINED_SPEECH_S: f64 = 0.15;
+
+/// What the decoder thread hands the bus loop.
+enum Decoded {
+    /// The end-pointer opened, ended or dropped an utterance (at that stream time, s).
+    Activity(VoiceState, f64),
+    /// An utterance decoded, from audio that arrived then.
+    Utterance(Recognized, Instant),
+}
+
 /// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
 pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
     let mut recognizer = prepared.recognizer;
     let out = bus.publisher(&topics::SPEECH_UTTERANCE).await?;
+    let activity = bus.publisher(&topics::SPEECH_ACTIVITY).await?;
     let model = &recognizer.config().acoustic_model;
     if model.stock {
         tracing::warn!(
@@ -224,16 +237,38 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     // loop to take its results.
     let (audio_tx, audio_rx) =
         std::sync::mpsc::sync_channel::<(Vec<i16>, Instant)>(DECODER_BACKLOG);
-    let (res_tx, mut res_rx) =
-        tokio::sync::mpsc::channel::<anyhow::Result<(Recognized, Instant)>>(16);
+    let (res_tx, mut res_rx) = tokio::sync::mpsc::channel::<anyhow::Result<Decoded>>(16);
     std::thread::Builder::new()
         .name("decoder".into())
         .spawn(move || {
+            let mut heard_s = 0.0;
+            // The start of the utterance whose speech was announced.
+            let mut announced: Option<f64> = None;
             while let Ok((samples, arrived)) = audio_rx.recv() {
+                let dropped_before = recognizer.dropped_short();
+                heard_s += samples.len() as f64 / f64::from(RATE_HZ);
                 match recognizer.push(&samples) {
                     Ok(v) => {
+                        let dropped = recognizer.dropped_short() > dropped_before;
+                        let mut events = Vec::new();
                         for r in v {
-                            if res_tx.blocking_send(Ok((r, arrived))).is_err() {
+                            events.push(Decoded::Activity(VoiceState::Ended, r.end_s));
+                            events.push(Decoded::Utterance(r, arrived));
+                        }
+                        if dropped {
+                            events.push(Decoded::Activity(VoiceState::Dropped, heard_s));
+                        }
+                        // Speech that has gone on long enough not to be a click, a cough or
+                        // what an echo canceller lets through of the robot as it adapts.
+                        if let Some((start, loud_s)) = recognizer.speech_open()
+                            && loud_s >= SUSTAINED_SPEECH_S
+                            && announced != Some(start)
+                        {
+                            announced = Some(start);
+                            events.push(Decoded::Activity(VoiceState::Started, start));
+                        }
+                        for e in events {
+                            if res_tx.blocking_send(Ok(e)).is_err() {
                                 return;
                             }
                         }
@@ -324,7 +359,16 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             }
             r = res_rx.recv() => {
                 let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };
-                let (r, arrived) = r?;
+                let (r, arrived) = match r? {
+                    Decoded::Activity(state, stream_s) => {
+                        tracing::debug!("voice activity: {state:?} at {stream_s:.2} s");
+                        activity
+                            .publish(&mut VoiceActivity { header: Default::default(), state, stream_s })
+                            .await?;
+                        continue;
+                    }
+                    Decoded::Utterance(r, arrived) => (r, arrived),
+                };
                 let msg = to_msg(&r, arrived.elapsed().as_secs_f64());
                 tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
                 print(&msg);

@@ -270,6 +270,14 @@ impl Recognizer {
         self.vad.dropped_short
     }
 
+    /// The utterance the end-pointer has open, if any: the stream time it began and how much
+    /// speech it holds so far (s).
+    pub fn speech_open(&self) -> Option<(f64, f64)> {
+        let (start, _, _) = self.vad.open_prefix()?;
+        let loud = self.vad.open_loud_s()?;
+        Some((start as f64 / crate::vad::RATE_HZ as f64, loud))
+    }
+
     /// Feed stream samples (16 kHz mono); returns the utterances that ended in them.
     ///
     /// Once the end-pointer has opened an utterance, its samples go to both searches as they

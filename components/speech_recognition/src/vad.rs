@@ -163,6 +163,12 @@ impl Vad {
         Some((open.start_sample, &open.samples[..keep], open.lead_len))
     }
 
+    /// How much speech (loud frames, s) the utterance under way holds so far.
+    pub fn open_loud_s(&self) -> Option<f64> {
+        let open = self.open.as_ref()?;
+        Some((open.loud_frames * FRAME) as f64 / RATE_HZ as f64)
+    }
+
     /// The current noise floor estimate (dBFS).
     pub fn floor_dbfs(&self) -> Option<f64> {
         self.floor_db

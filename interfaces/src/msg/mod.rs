@@ -181,6 +181,7 @@ messages! {
     speech::Utterance => "robocog.speech.Utterance",
     speech::SayRequest => "robocog.speech.SayRequest",
     speech::SpeakingEvent => "robocog.speech.SpeakingEvent",
+    speech::VoiceActivity => "robocog.speech.VoiceActivity",
     tracking::SimBall => "robocog.sim.Ball",
     body::JointGoal => "robocog.body.JointGoal",
     body::JointGoalReply => "robocog.body.JointGoalReply",

@@ -81,6 +81,31 @@ pub struct Utterance {
     pub latency_s: f64,
 }
 
+/// What the recognizer's end-pointer hears on the microphone (`speech/activity`): someone
+/// started speaking, or stopped. Published as the end-pointer decides, before any decoding, so a
+/// robot talking over the person can yield at once (`audio_io --pause-on-speech`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct VoiceActivity {
+    pub header: Header,
+    pub state: VoiceState,
+    /// When the speech started (for `Started`) or ended, seconds on the input stream as in
+    /// [`Utterance::stream_start_s`].
+    pub stream_s: f64,
+}
+
+/// The end-pointer's decision.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum VoiceState {
+    /// Speech started: an utterance is open and has held speech long enough not to be a
+    /// click or a cough (0.15 s of it).
+    #[default]
+    Started,
+    /// The utterance ended; its decoding follows on `speech/utterance`.
+    Ended,
+    /// The utterance was too short to be speech (a click, a cough): nothing follows.
+    Dropped,
+}
+
 /// How urgent a request to speak is.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Priority {
@@ -92,7 +117,9 @@ pub enum Priority {
     Urgent,
 }
 
-/// A request to say something (`speech/say`).
+/// A request to say something (`speech/say`). An [`Priority::Urgent`] request with no text
+/// silences the robot: it cuts what is being said and says nothing (the dialog sends one when
+/// the player talks over the robot).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct SayRequest {
     pub header: Header,

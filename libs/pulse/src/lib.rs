@@ -11,6 +11,8 @@
 //! - [`Capture`] reads s16le PCM from a source by name, in chunks of a fixed size.
 //! - [`Playback`] writes s16le PCM to a sink by name, with a bounded server-side buffer so that
 //!   cutting the speech short ([`Playback::flush`]) takes effect within that buffer's length.
+//! - [`EchoCanceller`] loads the server's acoustic echo canceller between a microphone and a
+//!   speaker ([`modules`], [`load_module`] and [`unload_module`] underneath).
 //!
 //! Device names are the server's (`pactl list short sources`); [`DEFAULT_SOURCE`] and
 //! [`DEFAULT_SINK`] stand for whatever the server's defaults are. A name the server does not
@@ -178,48 +180,88 @@ fn describe(e: PAErr) -> String {
     format!("{e}")
 }
 
+/// A connection to the server for asking it things (its devices, its modules), every wait
+/// bounded by [`LIST_TIMEOUT`] from the moment it was made.
+struct Session {
+    mainloop: Mainloop,
+    context: Context,
+    server: Option<String>,
+    deadline: Instant,
+}
+
+impl Session {
+    fn connect(server: Option<&str>) -> Result<Self, Error> {
+        let no_server = |reason: String| Error::NoServer {
+            server: server_label(server),
+            reason,
+        };
+        let mainloop =
+            Mainloop::new().ok_or_else(|| no_server("libpulse has no main loop".into()))?;
+        let mut context = Context::new(&mainloop, "robocog")
+            .ok_or_else(|| no_server("libpulse has no context".into()))?;
+        context
+            .connect(server, ContextFlags::NOAUTOSPAWN, None)
+            .map_err(|e| no_server(describe(e)))?;
+        let mut session = Session {
+            mainloop,
+            context,
+            server: server.map(str::to_string),
+            deadline: Instant::now() + LIST_TIMEOUT,
+        };
+        loop {
+            match session.context.get_state() {
+                ContextState::Ready => return Ok(session),
+                ContextState::Failed | ContextState::Terminated => {
+                    let reason = describe(session.context.errno());
+                    return Err(session.no_server(reason));
+                }
+                _ => session.step()?,
+            }
+        }
+    }
+
+    fn no_server(&self, reason: String) -> Error {
+        Error::NoServer {
+            server: server_label(self.server.as_deref()),
+            reason,
+        }
+    }
+
+    /// Run the main loop once (or sleep briefly when it had nothing to do).
+    fn step(&mut self) -> Result<(), Error> {
+        if Instant::now() > self.deadline {
+            return Err(self.no_server(format!("no answer within {} s", LIST_TIMEOUT.as_secs())));
+        }
+        match self.mainloop.iterate(false) {
+            IterateResult::Success(0) => std::thread::sleep(Duration::from_millis(2)),
+            IterateResult::Success(_) => {}
+            IterateResult::Quit(_) => return Err(self.no_server("the main loop quit".into())),
+            IterateResult::Err(e) => return Err(self.no_server(describe(e))),
+        }
+        Ok(())
+    }
+
+    /// Wait until none of `states` says running.
+    fn wait(&mut self, states: impl Fn() -> bool) -> Result<(), Error> {
+        while states() {
+            self.step()?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.context.disconnect();
+    }
+}
+
 /// The devices of the server at `server` (`None`: the usual address), waiting at most
 /// [`LIST_TIMEOUT`] for it.
 pub fn devices(server: Option<&str>) -> Result<Devices, Error> {
-    let no_server = |reason: String| Error::NoServer {
-        server: server_label(server),
-        reason,
-    };
-    let mut mainloop =
-        Mainloop::new().ok_or_else(|| no_server("libpulse has no main loop".into()))?;
-    let mut context = Context::new(&mainloop, "robocog")
-        .ok_or_else(|| no_server("libpulse has no context".into()))?;
-    context
-        .connect(server, ContextFlags::NOAUTOSPAWN, None)
-        .map_err(|e| no_server(describe(e)))?;
-    let deadline = Instant::now() + LIST_TIMEOUT;
-    let step = |mainloop: &mut Mainloop| -> Result<(), Error> {
-        if Instant::now() > deadline {
-            return Err(no_server(format!(
-                "no answer within {} s",
-                LIST_TIMEOUT.as_secs()
-            )));
-        }
-        match mainloop.iterate(false) {
-            IterateResult::Success(0) => std::thread::sleep(Duration::from_millis(2)),
-            IterateResult::Success(_) => {}
-            IterateResult::Quit(_) => return Err(no_server("the main loop quit".into())),
-            IterateResult::Err(e) => return Err(no_server(describe(e))),
-        }
-        Ok(())
-    };
-    loop {
-        match context.get_state() {
-            ContextState::Ready => break,
-            ContextState::Failed | ContextState::Terminated => {
-                let reason = describe(context.errno());
-                return Err(no_server(reason));
-            }
-            _ => step(&mut mainloop)?,
-        }
-    }
+    let mut session = Session::connect(server)?;
     let found = Rc::new(RefCell::new(Devices::default()));
-    let introspect = context.introspect();
+    let introspect = session.context.introspect();
     let f = Rc::clone(&found);
     let op_server = introspect.get_server_info(move |info| {
         let mut d = f.borrow_mut();
@@ -259,18 +301,206 @@ pub fn devices(server: Option<&str>) -> Result<Devices, Error> {
             });
         }
     });
-    while [
-        op_server.get_state(),
-        op_sources.get_state(),
-        op_sinks.get_state(),
-    ]
-    .contains(&OperationState::Running)
-    {
-        step(&mut mainloop)?;
-    }
-    context.disconnect();
+    session.wait(|| {
+        [
+            op_server.get_state(),
+            op_sources.get_state(),
+            op_sinks.get_state(),
+        ]
+        .contains(&OperationState::Running)
+    })?;
     let devices = found.borrow().clone();
     Ok(devices)
+}
+
+/// A module loaded in the server.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Module {
+    pub index: u32,
+    pub name: String,
+    pub argument: String,
+}
+
+/// The modules loaded in the server at `server`.
+pub fn modules(server: Option<&str>) -> Result<Vec<Module>, Error> {
+    let mut session = Session::connect(server)?;
+    let found = Rc::new(RefCell::new(Vec::new()));
+    let f = Rc::clone(&found);
+    let op = session.context.introspect().get_module_info_list(move |r| {
+        if let ListResult::Item(m) = r {
+            f.borrow_mut().push(Module {
+                index: m.index,
+                name: m.name.as_deref().unwrap_or("").to_string(),
+                argument: m.argument.as_deref().unwrap_or("").to_string(),
+            });
+        }
+    });
+    session.wait(|| op.get_state() == OperationState::Running)?;
+    let modules = found.borrow().clone();
+    Ok(modules)
+}
+
+/// Load the module `name` with `argument` (`key=value` pairs separated by spaces) into the
+/// server; its index. A module the server refuses (a bad argument, a master device it does not
+/// have) is an [`Error::Invalid`] (the server's log says why).
+pub fn load_module(server: Option<&str>, name: &str, argument: &str) -> Result<u32, Error> {
+    if name.contains('\0') || argument.contains('\0') {
+        return Err(Error::Invalid {
+            what: format!("module {name:?}"),
+            reason: "a NUL byte in its name or argument".into(),
+        });
+    }
+    let mut session = Session::connect(server)?;
+    let index = Rc::new(RefCell::new(None));
+    let i = Rc::clone(&index);
+    let op = session
+        .context
+        .introspect()
+        .load_module(name, argument, move |n| *i.borrow_mut() = Some(n));
+    session.wait(|| op.get_state() == OperationState::Running)?;
+    let loaded = *index.borrow();
+    match loaded {
+        Some(n) if n != u32::MAX => Ok(n),
+        _ => Err(Error::Invalid {
+            what: format!("module {name} ({argument})"),
+            reason: format!(
+                "the sound server refused it: {}",
+                describe(session.context.errno())
+            ),
+        }),
+    }
+}
+
+/// Unload the module `index` from the server (one already gone is not an error).
+pub fn unload_module(server: Option<&str>, index: u32) -> Result<(), Error> {
+    let mut session = Session::connect(server)?;
+    let op = session.context.introspect().unload_module(index, |_| {});
+    session.wait(|| op.get_state() == OperationState::Running)
+}
+
+/// Acoustic echo cancellation in the server: PulseAudio's `module-echo-cancel` with the WebRTC
+/// canceller (PipeWire's PulseAudio service has the same module) between one microphone and one
+/// speaker. It makes a source ([`EchoCanceller::source`]: the microphone with what was played on
+/// the speaker taken out) and a sink ([`EchoCanceller::sink`]: the speaker, whose stream is the
+/// canceller's reference). Capture from the one and play to the other; anything else played into
+/// the room (a person) stays in the microphone's signal.
+///
+/// The module is unloaded when this is dropped. One left behind by a process that was killed is
+/// found by its source's name and replaced when the next one loads.
+#[derive(Debug)]
+pub struct EchoCanceller {
+    server: Option<String>,
+    index: u32,
+    source: String,
+    sink: String,
+}
+
+/// The module and its canceller.
+pub const ECHO_CANCEL_MODULE: &str = "module-echo-cancel";
+
+/// A device name as a module argument's value: one word, without quotes.
+fn module_value(what: &str, name: &str) -> Result<String, Error> {
+    if name.is_empty()
+        || name
+            .chars()
+            .any(|c| c.is_whitespace() || "\"'\\\0".contains(c))
+    {
+        return Err(Error::Invalid {
+            what: what.to_string(),
+            reason: format!("{name:?} cannot be given to a module (empty, spaces or quotes)"),
+        });
+    }
+    Ok(name.to_string())
+}
+
+/// A name derived from a device's, for the canceller's own devices.
+fn derived_name(device: &str) -> String {
+    device
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+impl EchoCanceller {
+    /// Cancel what `sink_master` plays out of what `source_master` hears ([`DEFAULT_SOURCE`] and
+    /// [`DEFAULT_SINK`] stand for the server's defaults).
+    pub fn load(
+        server: Option<&str>,
+        source_master: &str,
+        sink_master: &str,
+    ) -> Result<Self, Error> {
+        // No gain control: the canceller would change the microphone's volume (analog) or the
+        // signal's level (digital) as people and the robot speak, under the recognizer's
+        // end-pointer, which follows the room's level itself.
+        let mut argument = String::from(
+            "aec_method=webrtc aec_args=\"analog_gain_control=0 digital_gain_control=0\"",
+        );
+        let mut tag = String::new();
+        if source_master != DEFAULT_SOURCE {
+            let m = module_value("echo canceller's microphone", source_master)?;
+            argument += &format!(" source_master={m}");
+            tag += &derived_name(&m);
+        }
+        if sink_master != DEFAULT_SINK {
+            let m = module_value("echo canceller's speaker", sink_master)?;
+            argument += &format!(" sink_master={m}");
+            tag += &format!("_{}", derived_name(&m));
+        }
+        if tag.is_empty() {
+            tag = "default".into();
+        }
+        let source = format!("robocog_aec_mic.{tag}");
+        let sink = format!("robocog_aec_speaker.{tag}");
+        argument += &format!(" source_name={source} sink_name={sink}");
+        // A canceller of the same devices left by a process that did not unload it.
+        let ours = format!("source_name={source} ");
+        for m in modules(server)? {
+            if m.name == ECHO_CANCEL_MODULE && format!("{} ", m.argument).contains(&ours) {
+                unload_module(server, m.index)?;
+            }
+        }
+        let index = load_module(server, ECHO_CANCEL_MODULE, &argument)?;
+        Ok(Self {
+            server: server.map(str::to_string),
+            index,
+            source,
+            sink,
+        })
+    }
+
+    /// The echo-cancelled microphone.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The speaker as the canceller's reference.
+    pub fn sink(&self) -> &str {
+        &self.sink
+    }
+
+    /// The module's index in the server.
+    pub fn index(&self) -> u32 {
+        self.index
+    }
+
+    /// Whether the module is still loaded (the server unloads it when a master device goes).
+    pub fn loaded(&self) -> Result<bool, Error> {
+        Ok(modules(self.server.as_deref())?
+            .iter()
+            .any(|m| m.index == self.index && m.name == ECHO_CANCEL_MODULE))
+    }
+}
+
+impl Drop for EchoCanceller {
+    fn drop(&mut self) {
+        let _ = unload_module(self.server.as_deref(), self.index);
+    }
 }
 
 /// The error of opening a stream on `device`: a missing device names the ones there are.
@@ -614,6 +844,26 @@ mod tests {
         assert!(spec(16_000, 1).is_ok());
         let e =
             Capture::open(Some("unix:/nonexistent/socket"), "mic", 16_000, 1, 0, "t").unwrap_err();
+        assert!(e.is_configuration(), "{e}");
+    }
+
+    #[test]
+    fn an_echo_canceller_takes_one_word_device_names_and_names_its_own_after_them() {
+        assert_eq!(
+            module_value("m", "alsa_input.usb-1").unwrap(),
+            "alsa_input.usb-1"
+        );
+        for bad in ["", "two words", "quo\"te", "back\\slash"] {
+            assert!(
+                matches!(module_value("m", bad), Err(Error::Invalid { .. })),
+                "{bad:?}"
+            );
+        }
+        assert_eq!(derived_name("room.monitor"), "room.monitor");
+        assert_eq!(derived_name("a:b/c"), "a_b_c");
+        // Refused before the server is asked.
+        let e = EchoCanceller::load(Some("unix:/nonexistent/socket"), "two words", DEFAULT_SINK)
+            .unwrap_err();
         assert!(e.is_configuration(), "{e}");
     }
 

@@ -11,7 +11,7 @@ use interfaces::{Bus, Shutdown, topics};
 #[derive(Debug, Clone, clap::Args)]
 pub struct Config {
     /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench,
-    /// tracker_restart, restart_mid_game) or a TOML
+    /// barge_in, tracker_restart, restart_mid_game) or a TOML
     /// file.
     #[arg(long, default_value = "still")]
     pub scenario: String,

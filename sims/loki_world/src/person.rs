@@ -264,9 +264,13 @@ pub async fn run(
         }
         let n = i + 1;
         match step {
-            Step::Say(text) => {
+            Step::Say(text) | Step::Interrupt(text) => {
                 mark = Instant::now();
-                say(&speech_tx, &voice, text, &seen, &mut shutdown).await?;
+                let over = matches!(step, Step::Interrupt(_));
+                if over && lock(&seen).robot_has_the_floor(mark) {
+                    println!("person: talks over the robot");
+                }
+                say(&speech_tx, &voice, text, !over, &seen, &mut shutdown).await?;
                 action_end = Instant::now();
                 println!("person: says {text:?}");
                 last_said = Some(text.clone());
@@ -329,7 +333,7 @@ pub async fn run(
                                     e.timeout_s
                                 );
                                 mark = Instant::now();
-                                say(&speech_tx, &voice, text, &seen, &mut shutdown).await?;
+                                say(&speech_tx, &voice, text, true, &seen, &mut shutdown).await?;
                                 action_end = Instant::now();
                                 last_action = (n, format!("says {text:?}"));
                                 continue;
@@ -379,13 +383,14 @@ fn move_ball(ball: &Mutex<Ball>, now_s: f64, m: &BallMove) -> f64 {
 /// How long the person waits for the robot to finish speaking before she talks anyway (s).
 const TURN_WAIT_S: f64 = 8.0;
 
-/// Speak `text`, taking turns: first wait (at most [`TURN_WAIT_S`]) for the robot to finish what
-/// it is saying and what it has queued to say next, as people do (and as the dialog expects: it ignores speech heard while the robot
-/// talks, its own echo guard).
+/// Speak `text`. Taking turns, first wait (at most [`TURN_WAIT_S`]) for the robot to finish what
+/// it is saying and what it has queued to say next, as people do (and as the dialog expects
+/// without barge-in: it ignores speech heard while the robot talks, its own echo guard).
 async fn say(
     speech: &mpsc::Sender<SpeechJob>,
     voice: &Voice,
     text: &str,
+    take_turns: bool,
     seen: &Mutex<Seen>,
     shutdown: &mut interfaces::node::Shutdown,
 ) -> anyhow::Result<()> {
@@ -393,7 +398,7 @@ async fn say(
     let mut waited = false;
     // Told it cannot hear her, she waits for it to say it can (bounded by DEAF_AT_MOST).
     let turn = |seen: &Seen| seen.deaf_until.map_or(turn, |d| d.max(turn));
-    while {
+    while take_turns && {
         let s = lock(seen);
         s.robot_has_the_floor(Instant::now()) && Instant::now() < turn(&s)
     } {

@@ -48,6 +48,7 @@ pub const BUILT_IN: &[(&str, &str)] = &[
     ("unreachable", include_str!("../scenarios/unreachable.toml")),
     ("confirm_yes", include_str!("../scenarios/confirm_yes.toml")),
     ("bench", include_str!("../scenarios/bench.toml")),
+    ("barge_in", include_str!("../scenarios/barge_in.toml")),
     (
         "tracker_restart",
         include_str!("../scenarios/tracker_restart.toml"),
@@ -79,7 +80,7 @@ pub enum ScenarioError {
     #[error("scenario {origin}: {why}")]
     InvalidBall { origin: String, why: String },
     #[error(
-        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, tracker_restart, restart_mid_game)"
+        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, barge_in, tracker_restart, restart_mid_game)"
     )]
     Unknown(String),
 }
@@ -159,7 +160,10 @@ impl Default for VoiceSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Step {
+    /// Say it when the robot has finished what it is saying (people take turns).
     Say(String),
+    /// Say it at once, over the robot if it is speaking (a barge-in).
+    Interrupt(String),
     Ball(BallMove),
     PauseS(f64),
     Expect(Expect),
@@ -316,7 +320,7 @@ impl Scenario {
                 why,
             };
             match step {
-                Step::Say(text) => {
+                Step::Say(text) | Step::Interrupt(text) => {
                     if text.trim().is_empty() {
                         return Err(bad("say: nothing to say".into()));
                     }

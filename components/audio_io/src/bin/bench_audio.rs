@@ -11,10 +11,20 @@
 //! - **Capture to `audio/in`**: for every chunk, its arrival on the bus minus its stamp (the
 //!   capture time of its first sample, as `audio_io` estimates it from the server's latency).
 //!
-//! The sound server is the caller's (`scripts/bench audio` starts one with a null sink `room`
-//! and a virtual source `mic` on its monitor). Prints a table, then one JSON line.
+//! - **The robot's own voice in its microphone**: sentences of the robot (espeak-ng, as the
+//!   speech generator says them) played through `audio_io` on a loudspeaker heard in the room,
+//!   with the microphone on the room, without an echo canceller (the peer: what gating must
+//!   cover) and with the sound server's WebRTC canceller (`--echo-cancel webrtc`). Measured:
+//!   the robot's level in the room and on `audio/in` over the sentences, their difference (the
+//!   echo return loss enhancement, ERLE), and the share of 10 ms frames of `audio/in` loud
+//!   enough for the recognizer's end-pointer (-65 dBFS). The first sentence, while the
+//!   canceller adapts, is reported apart.
+//!
+//! The sound server is the caller's (`scripts/bench audio` starts one with a null sink `room`,
+//! a virtual source `mic` on its monitor, and a null sink `speaker` heard in the room through a
+//! loop-back). Prints a table, then one JSON line.
 
-use audio_io::component::{self, Config, Driver};
+use audio_io::component::{self, Config, Driver, EchoCancel};
 use clap::Parser;
 use interfaces::msg::speech::AudioChunk;
 use interfaces::node::Shutdown;
@@ -43,6 +53,198 @@ struct Args {
     /// Time between two clicks (ms): the room is silent again before the next.
     #[arg(long, default_value_t = 500)]
     gap_ms: u64,
+    /// The robot's loudspeaker for the echo measurement: a sink heard in the room.
+    #[arg(long, default_value = "speaker")]
+    echo_speaker: String,
+    /// The microphone for the echo measurement (a source on the room).
+    #[arg(long, default_value = "room.monitor")]
+    echo_mic: String,
+    /// Sentences per echo measurement (after the first, while the canceller adapts).
+    #[arg(long, default_value_t = 6)]
+    sentences: usize,
+}
+
+/// What the robot says in the echo measurement (the touch game's sentences).
+const SENTENCES: &[&str] = &[
+    "Hello, I am Loki. Nice to meet you!",
+    "Great, let's play! Show me the ball and ask me to scan it.",
+    "I'm looking for the ball.",
+    "I'm going to touch the ball.",
+    "Thank you! I'm moving my arm back.",
+    "I cannot find the ball. Please show it to me.",
+    "Did you say touch the ball?",
+    "Thank you for playing. Goodbye!",
+];
+
+/// The recognizer's end-pointer hears nothing quieter (its `min_level_dbfs`).
+const VAD_FLOOR_DBFS: f64 = -65.0;
+
+/// The robot's voice in the room and in its microphone, over some sentences.
+#[derive(Debug, Default, Clone, Copy)]
+struct Echo {
+    /// Mean levels over the sentences (dBFS).
+    room_dbfs: f64,
+    mic_dbfs: f64,
+    /// Share of the microphone's 10 ms frames at or above [`VAD_FLOOR_DBFS`] (%).
+    frames_over_floor_pct: f64,
+}
+
+impl Echo {
+    fn erle_db(&self) -> f64 {
+        self.room_dbfs - self.mic_dbfs
+    }
+}
+
+fn dbfs(energy: f64, n: usize) -> f64 {
+    if n == 0 || energy <= 0.0 {
+        return -120.0;
+    }
+    10.0 * (energy / n as f64 / (32768.0 * 32768.0)).log10()
+}
+
+/// Sum of squares and count, and the 10 ms frames over the floor.
+#[derive(Debug, Default)]
+struct Levels {
+    energy: f64,
+    n: usize,
+    frames: usize,
+    loud_frames: usize,
+}
+
+impl Levels {
+    fn add(&mut self, samples: &[i16]) {
+        for f in samples.chunks(160) {
+            let e: f64 = f.iter().map(|&x| f64::from(x) * f64::from(x)).sum();
+            self.energy += e;
+            self.n += f.len();
+            if f.len() == 160 {
+                self.frames += 1;
+                if dbfs(e, f.len()) >= VAD_FLOOR_DBFS {
+                    self.loud_frames += 1;
+                }
+            }
+        }
+    }
+}
+
+/// The robot's `sentences` through `audio_io` with `mode`: the first sentence (adapting) and
+/// the rest.
+async fn echo(
+    args: &Args,
+    mode: EchoCancel,
+    sentences: &[Vec<i16>],
+) -> anyhow::Result<(Echo, Echo)> {
+    let (_router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
+    let connect = ConnectArgs::to_router(
+        &endpoint,
+        &format!("bench-echo-{}-{mode:?}", std::process::id()),
+    );
+    let config = Config {
+        driver: Driver::Pulse,
+        server: args.server.clone(),
+        source: args.echo_mic.clone(),
+        sink: args.echo_speaker.clone(),
+        no_capture: false,
+        no_playback: false,
+        rate_hz: RATE_HZ,
+        chunk_ms: 20,
+        playback_buffer_ms: BUFFER.as_millis() as u32,
+        reopen_s: 1.0,
+        echo_cancel: mode,
+        pause_on_speech: false,
+        resume_after_s: 0.8,
+    };
+    let prepared = component::prepare(config)?;
+    let component_bus = Bus::open(&connect, "audio_io").await?;
+    let (stop, shutdown) = Shutdown::new();
+    let running = tokio::spawn(component::run(component_bus, prepared, shutdown));
+    let bus = Bus::open(&connect, "bench_audio").await?;
+    let out = bus.publisher(&topics::AUDIO_OUT).await?;
+    let heard = bus.subscriber(&topics::AUDIO_IN).await?;
+    tokio::time::timeout(Duration::from_secs(10), heard.recv()).await??;
+    // The room, straight from the server, beside audio_io's microphone.
+    let (room_tx, room_rx) = mpsc::sync_channel::<Vec<i16>>(512);
+    let room_stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let room = {
+        let mut capture = pulse::Capture::open(
+            Some(args.server.as_str()),
+            &args.echo_mic,
+            RATE_HZ,
+            1,
+            CHUNK_FRAMES,
+            "bench room",
+        )?;
+        let stopped = room_stop.clone();
+        std::thread::Builder::new()
+            .name("bench-room".into())
+            .spawn(move || {
+                let mut buf = Vec::new();
+                while !stopped.load(std::sync::atomic::Ordering::Relaxed)
+                    && capture.read(&mut buf).is_ok()
+                {
+                    if room_tx.send(std::mem::take(&mut buf)).is_err() {
+                        return;
+                    }
+                }
+            })?
+    };
+    let mut results = Vec::new();
+    for sentence in sentences {
+        let (mut mic, mut in_room) = (Levels::default(), Levels::default());
+        while room_rx.try_recv().is_ok() {}
+        // The sentence in 100 ms chunks, paced in real time as the generator does, and what
+        // the microphone and the room hear until 0.5 s after its end.
+        let start = Instant::now();
+        let end = start + Duration::from_secs_f64(sentence.len() as f64 / f64::from(RATE_HZ));
+        let listen_until = end + BUFFER + Duration::from_millis(500);
+        let mut chunks = sentence.chunks(1600).enumerate().peekable();
+        while Instant::now() < listen_until {
+            let due = |k: usize| start + Duration::from_millis(100 * k as u64);
+            if chunks
+                .peek()
+                .is_some_and(|(k, _)| Instant::now() >= due(*k))
+                && let Some((_, c)) = chunks.next()
+            {
+                out.publish(&mut AudioChunk::mono(RATE_HZ, c)).await?;
+            }
+            while let Ok(Ok(c)) = tokio::time::timeout(Duration::from_millis(5), heard.recv()).await
+            {
+                mic.add(&c.samples().unwrap_or_default());
+            }
+            while let Ok(r) = room_rx.try_recv() {
+                in_room.add(&r);
+            }
+        }
+        results.push((mic, in_room));
+        // A pause between two sentences, as in a game.
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
+    room_stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = stop.send(true);
+    let _ = running.await;
+    drop(room_rx);
+    let _ = room.join();
+    let summary = |r: &[(Levels, Levels)]| {
+        let (mut m, mut o) = (Levels::default(), Levels::default());
+        for (a, b) in r {
+            m.energy += a.energy;
+            m.n += a.n;
+            m.frames += a.frames;
+            m.loud_frames += a.loud_frames;
+            o.energy += b.energy;
+            o.n += b.n;
+        }
+        Echo {
+            room_dbfs: dbfs(o.energy, o.n),
+            mic_dbfs: dbfs(m.energy, m.n),
+            frames_over_floor_pct: if m.frames == 0 {
+                0.0
+            } else {
+                100.0 * m.loud_frames as f64 / m.frames as f64
+            },
+        }
+    };
+    Ok((summary(&results[..1]), summary(&results[1..])))
 }
 
 const RATE_HZ: u32 = 16_000;
@@ -133,6 +335,9 @@ async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
         chunk_ms: 20,
         playback_buffer_ms: BUFFER.as_millis() as u32,
         reopen_s: 1.0,
+        echo_cancel: EchoCancel::None,
+        pause_on_speech: false,
+        resume_after_s: 0.8,
     };
     let prepared = component::prepare(config)?;
     let component_bus = Bus::open(&connect, "audio_io").await?;
@@ -209,10 +414,52 @@ async fn main() -> anyhow::Result<()> {
         rt50 - fl50,
         missed
     );
+    // The robot's voice in its microphone, without and with the canceller.
+    let voice = audio::synth::Voice::default();
+    let mut sentences = Vec::new();
+    for text in SENTENCES.iter().cycle().take(args.sentences + 1) {
+        sentences.push(audio::synth::synthesize_16k(text, &voice)?);
+    }
+    eprintln!(
+        "the robot's voice in its microphone: {} sentences on {:?}, microphone {:?}",
+        sentences.len(),
+        args.echo_speaker,
+        args.echo_mic
+    );
+    let (_, none) = echo(&args, EchoCancel::None, &sentences).await?;
+    let (aec_first, aec) = echo(&args, EchoCancel::Webrtc, &sentences).await?;
+    println!();
+    println!(
+        "| the robot's voice | in the room dBFS | on audio/in dBFS | ERLE dB | audio/in frames over {VAD_FLOOR_DBFS} dBFS |"
+    );
+    println!("|---|---:|---:|---:|---:|");
+    for (name, e) in [
+        ("no canceller (the peer)", none),
+        ("WebRTC canceller, first sentence (adapting)", aec_first),
+        ("WebRTC canceller, the next sentences", aec),
+    ] {
+        println!(
+            "| {name} | {:.1} | {:.1} | {:.1} | {:.1} % |",
+            e.room_dbfs,
+            e.mic_dbfs,
+            e.erle_db(),
+            e.frames_over_floor_pct
+        );
+    }
     println!(
         "{}",
         serde_json::json!({
             "clicks": args.clicks,
+            "echo_sentences": args.sentences,
+            "echo_room_dbfs": round1(aec.room_dbfs),
+            "echo_mic_dbfs": round1(aec.mic_dbfs),
+            "echo_erle_db": round1(aec.erle_db()),
+            "echo_frames_over_vad_floor_pct": round1(aec.frames_over_floor_pct),
+            "echo_adapting_erle_db": round1(aec_first.erle_db()),
+            "echo_adapting_frames_over_vad_floor_pct": round1(aec_first.frames_over_floor_pct),
+            "peer_no_canceller_erle_db": round1(none.erle_db()),
+            "peer_no_canceller_frames_over_vad_floor_pct": round1(none.frames_over_floor_pct),
+            "erle_gain_db_vs_no_canceller": round1(aec.erle_db() - none.erle_db()),
             "round_trip_p50_ms": round1(rt50),
             "round_trip_p99_ms": round1(rt99),
             "libpulse_round_trip_p50_ms": round1(fl50),
