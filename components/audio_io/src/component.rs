@@ -1044,7 +1044,8 @@ mod tests {
             (&["--chunk-ms", "0"][..], "--chunk-ms"),
             (&["--playback-buffer-ms", "5"][..], "--playback-buffer-ms"),
             (&["--reopen-s", "0"][..], "--reopen-s"),
-            (&["--resume-after-s", "-1"][..], "--resume-after-s"),
+            (&["--resume-after-s=-1"][..], "--resume-after-s"),
+            (&["--resume-after-s", "11"][..], "--resume-after-s"),
             (
                 &["--echo-cancel", "webrtc", "--no-playback"][..],
                 "--echo-cancel needs both",
