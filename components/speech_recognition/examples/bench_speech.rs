@@ -1,31 +1,37 @@
 #![allow(clippy::unwrap_used)]
 //! Speech recognition benchmark: every command of both games (touch the ball, the Nao coach),
-//! said by 6 espeak-ng voices at 3 speeds (and pitches), clean and mixed with white noise at 20,
-//! 10 and 5 dB SNR, plus out-of-grammar sentences, through the recognizer as a live stream (20 ms
-//! chunks: end-pointer, both searches fed while the person speaks), in the component's default
-//! configuration: the adapted acoustic model when it is built (`--acoustic-model DIR|stock` to
-//! choose), `--denoise` to add the enhancement.
+//! said by 6 espeak-ng voices at 3 speeds (and pitches), in seven conditions (`corpus::Condition`):
+//! clean; white noise at 20, 10 and 5 dB SNR; reverberant rooms (RT60 0.3, 0.5, 0.8 s); three
+//! other people talking at 10 dB (babble, heard for 2.5 s before the command); a fan at 10 dB.
+//! Each condition also has out-of-grammar sentences, and babble also stretches of talk with no
+//! command. Everything goes through the recognizer as a live stream (20 ms chunks: end-pointer,
+//! both searches fed while the person speaks), in the component's default configuration: the
+//! adapted acoustic model when it is built (`--acoustic-model DIR|stock` to choose), `--denoise`
+//! to add the enhancement. `--conditions clean,babble_10` measures some conditions only.
 //!
-//! Figures per game and SNR: command accuracy (the right command, not rejected), the errors split
-//! by cause (the end-pointer did not cut exactly one utterance / one utterance but wrong words /
-//! right words rejected as out of grammar), false accepts (out-of-grammar speech mapped to a
-//! command with confidence at or above the dialog's high threshold 0.7), real-time factor, and
-//! the latency from the end of speech (the last sample of the clean speech louder than 300/32768)
-//! to the result, counting the stream time until the chunk in which the end-pointer cut it plus
-//! the processing of that chunk.
+//! Figures per game and condition: command accuracy (the right command, not rejected), the
+//! errors split by cause (the end-pointer did not cut exactly one utterance / one utterance but
+//! wrong words / right words rejected as out of grammar), false accepts (a command the dialog
+//! would take at once, confidence at or above its high threshold 0.7, that nobody gave: wrong
+//! words, out-of-grammar speech or background talk taken for a command; per utterance heard),
+//! real-time factor, and the latency from the end of speech (the last sample of the clean speech
+//! louder than 300/32768) to the result, counting the stream time until the chunk in which the
+//! end-pointer cut it plus the processing of that chunk.
 //!
-//! Evaluation set only: these 6 voices and noise seeds 1.. were not used to tune anything; the
-//! tuning (PocketSphinx options, enhancement, end-pointer, confidence calibration) used other
-//! voices (en-gb-x-rp, en-029, en-us+m1, en-gb+f2) and noise seeds from 1000
-//! (`examples/speech_errors.rs tune`), and the acoustic model's adaptation corpus yet other
-//! voices (`speech_recognition::adapt::VOICES`, checked here). All are espeak-ng voices, so the
-//! adapted model knows espeak-ng's speech: the figures are for the simulated person.
+//! Evaluation set only: these 6 voices, their background talk (`corpus::EVAL_BABBLE`, said by
+//! the other evaluation voices) and noise seeds 1.. were not used to tune anything; the tuning
+//! (PocketSphinx options, enhancement, end-pointer, confidence calibration) used other voices
+//! (en-gb-x-rp, en-029, en-us+m1, en-gb+f2), other background sentences and noise seeds from
+//! 1000 (`examples/speech_errors.rs tune`), and the acoustic model's adaptation corpus yet other
+//! voices and sentences (`speech_recognition::adapt::VOICES`, checked here). All are espeak-ng
+//! voices, so the adapted model knows espeak-ng's speech: the figures are for the simulated
+//! person.
 //!
-//! With `--write-wav DIR` every test utterance is also written as `<n>.wav`, with
-//! `<n> <game> <snr> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
+//! With `--write-wav DIR` every test command is also written as `<n>.wav`, with
+//! `<n> <game> <condition> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
 //! comparison of `scripts/bench.d/speech.sh`. The last line printed is a JSON summary.
 
-use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
+use audio::signal::{NoiseRng, active_power, babble};
 use audio::synth::synthesize_16k;
 use audio::wav::{Pcm, encode};
 use interfaces::msg::command::{Command, Game};
@@ -33,7 +39,10 @@ use speech_recognition::model::AcousticModel;
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
 mod corpus;
-use corpus::{EVAL_VOICES as VOICES, LEAD_S, SPEEDS, TRAIL_S, speech_end_s, voice};
+use corpus::{
+    BABBLE_TALKERS, Condition, EVAL_BABBLE, EVAL_VOICES as VOICES, SPEEDS, babble_talkers,
+    in_condition, speech_end_in, voice,
+};
 
 const OOG: &[&str] = &[
     "what a lovely day it is today",
@@ -50,7 +59,10 @@ const OOG: &[&str] = &[
     "how old are you",
 ];
 
-const SNRS: [f64; 4] = [f64::INFINITY, 20.0, 10.0, 5.0];
+/// Stretches of background talk with no command, per game (babble conditions).
+const TALK_ALONE: usize = 24;
+/// How long each is (s).
+const TALK_ALONE_S: f64 = 6.0;
 const HIGH: f64 = 0.7;
 const CHUNK: usize = 320;
 
@@ -80,12 +92,35 @@ fn pct(p: &[f64], q: f64) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-fn snr_name(snr: f64) -> String {
-    if snr.is_finite() {
-        format!("{snr}")
-    } else {
-        "clean".into()
-    }
+/// The background talkers for a command said by voice `vi`: the first [`BABBLE_TALKERS`] others.
+fn others(talkers: &[Vec<i16>], vi: usize) -> Vec<Vec<i16>> {
+    talkers
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != vi)
+        .take(BABBLE_TALKERS)
+        .map(|(_, t)| t.clone())
+        .collect()
+}
+
+/// Counts of one game in one condition.
+#[derive(Default)]
+struct Tally {
+    n: usize,
+    ok: usize,
+    vad: usize,
+    dec: usize,
+    rej: usize,
+    right_sure: usize,
+    /// Commands taken at once that nobody gave, and the utterances they were taken among.
+    false_accepts: usize,
+    heard: usize,
+    oog: usize,
+    oog_false: usize,
+    oog_asked: usize,
+    alone: usize,
+    alone_false: usize,
+    alone_utterances: usize,
 }
 
 fn main() {
@@ -122,7 +157,30 @@ fn main() {
     let (mut audio_s, mut busy_s) = (0.0, 0.0);
     let mut lat_all: Vec<f64> = vec![];
     let mut json: Vec<String> = vec![];
-    let (mut all_ok10, mut all_n10) = (0, 0);
+    let only: Option<Vec<Condition>> = args
+        .iter()
+        .position(|a| a == "--conditions")
+        .and_then(|i| args.get(i + 1))
+        .map(|l| {
+            l.split(',')
+                .map(|c| Condition::parse(c).unwrap_or_else(|| panic!("no condition {c:?}")))
+                .collect()
+        });
+    let conditions: Vec<Condition> = only.unwrap_or_else(|| Condition::ALL.to_vec());
+    println!(
+        "conditions: {}",
+        conditions
+            .iter()
+            .map(Condition::name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    // The background talkers: each evaluation voice saying the evaluation's background
+    // sentences (a command's babble is the other voices).
+    let talkers = babble_talkers(&VOICES, EVAL_BABBLE);
+    // (ok, n) over both games per condition.
+    let mut both: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+    let mut worst_false = (0.0f64, String::new());
     for game in Game::ALL {
         // The component's default configuration (see `RecognizerConfig`), with the chosen
         // acoustic model and optionally the enhancement.
@@ -143,18 +201,12 @@ fn main() {
                 }
             }
         }
-        for snr in SNRS {
-            let (mut ok, mut n, mut vad, mut dec, mut rej, mut right_sure) = (0, 0, 0, 0, 0, 0);
+        for &cond in &conditions {
+            let mut t = Tally::default();
             let mut lat = vec![];
-            for (vi, si, c, speech) in &said {
-                let a = mix_at_snr(
-                    speech,
-                    snr,
-                    NoiseKind::White,
-                    LEAD_S,
-                    TRAIL_S,
-                    &mut NoiseRng::new((vi * 7 + si) as u64 + 1),
-                );
+            for (clip, (vi, si, c, speech)) in said.iter().enumerate() {
+                let seed = (vi * 7 + si) as u64 + 1;
+                let a = in_condition(speech, cond, clip, &others(&talkers, *vi), seed);
                 if let Some(d) = &wav_dir {
                     std::fs::write(
                         d.join(format!("{n_wav}.wav")),
@@ -168,94 +220,186 @@ fn main() {
                     truth.push_str(&format!(
                         "{n_wav}\t{}\t{}\t{}\n",
                         game.name(),
-                        snr_name(snr),
+                        cond.name(),
                         c.phrase()
                     ));
                     n_wav += 1;
                 }
-                let end = speech_end_s(speech);
-                let t = std::time::Instant::now();
+                let end = speech_end_in(speech, cond);
+                let started = std::time::Instant::now();
                 let got = stream(&mut rec, &a, end);
-                busy_s += t.elapsed().as_secs_f64();
+                busy_s += started.elapsed().as_secs_f64();
                 audio_s += a.len() as f64 / 16000.0;
-                n += 1;
+                t.n += 1;
+                t.heard += got.len().max(1);
+                t.false_accepts += got
+                    .iter()
+                    .filter(|g| {
+                        g.0.command != Command::None && g.0.command != *c && g.0.confidence >= HIGH
+                    })
+                    .count();
                 if got.len() != 1 {
-                    vad += 1;
+                    t.vad += 1;
                 } else if Command::from_phrase(game, &got[0].0.text) != *c {
-                    dec += 1;
+                    t.dec += 1;
                 } else if got[0].0.command != *c {
-                    rej += 1;
+                    t.rej += 1;
                 } else {
-                    ok += 1;
+                    t.ok += 1;
                     if got[0].0.confidence >= HIGH {
-                        right_sure += 1;
+                        t.right_sure += 1;
                     }
                 }
                 lat.extend(got.iter().map(|g| g.1).filter(|l| l.is_finite()));
             }
+            // Out-of-grammar sentences, each voice, in the same condition.
+            for (i, s) in OOG.iter().enumerate() {
+                for (vi, v) in VOICES.iter().enumerate() {
+                    let voice = audio::synth::Voice {
+                        voice: v.to_string(),
+                        ..Default::default()
+                    };
+                    let speech = synthesize_16k(s, &voice).unwrap();
+                    let a = in_condition(
+                        &speech,
+                        cond,
+                        i * VOICES.len() + vi,
+                        &others(&talkers, vi),
+                        i as u64 + 100,
+                    );
+                    let got = stream(&mut rec, &a, f64::NAN);
+                    t.oog += 1;
+                    t.heard += got.len().max(1);
+                    let cmd = |r: &&(Recognized, f64)| r.0.command != Command::None;
+                    let sure = got
+                        .iter()
+                        .filter(cmd)
+                        .filter(|r| r.0.confidence >= HIGH)
+                        .count();
+                    t.false_accepts += sure;
+                    if sure > 0 {
+                        t.oog_false += 1;
+                    } else if got.iter().filter(cmd).any(|r| r.0.confidence >= 0.3) {
+                        t.oog_asked += 1;
+                    }
+                }
+            }
+            // Background talk and nothing else: no command may come of it.
+            if let Condition::Babble(_) = cond {
+                for k in 0..TALK_ALONE {
+                    let mut rng =
+                        NoiseRng::new((k as u64 + 500).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                    let n = (TALK_ALONE_S * 16_000.0) as usize;
+                    let snr = match cond {
+                        Condition::Babble(s) => s,
+                        _ => unreachable!(),
+                    };
+                    // The talk at the level it has under a command said at this SNR.
+                    let command = &said[k % said.len()].3;
+                    let p = active_power(command) / 10f64.powf(snr / 10.0);
+                    let a: Vec<i16> = babble(&others(&talkers, k % VOICES.len()), n, p, &mut rng)
+                        .iter()
+                        .map(|x| x.round().clamp(-32768.0, 32767.0) as i16)
+                        .collect();
+                    let got = stream(&mut rec, &a, f64::NAN);
+                    t.alone += 1;
+                    t.alone_utterances += got.len();
+                    t.heard += got.len();
+                    let sure = got
+                        .iter()
+                        .filter(|r| r.0.command != Command::None && r.0.confidence >= HIGH)
+                        .count();
+                    t.false_accepts += sure;
+                    if sure > 0 {
+                        t.alone_false += 1;
+                    }
+                }
+            }
             lat.sort_by(f64::total_cmp);
             lat_all.extend(&lat);
-            if snr == 10.0 {
-                all_ok10 += ok;
-                all_n10 += n;
+            let e = both.entry(cond.name()).or_default();
+            e.0 += t.ok;
+            e.1 += t.n;
+            let fa = t.false_accepts as f64 / t.heard.max(1) as f64;
+            if fa >= worst_false.0 {
+                worst_false = (fa, format!("{} {}", game.name(), cond.name()));
             }
             eprintln!(
-                "{:5} SNR {:>5}: {ok}/{n} = {:.3} right command ({right_sure} with confidence >= {HIGH}); errors: end-pointer {vad}, wrong words {dec}, rejected {rej}; end of speech -> result p50 {:.3} s p90 {:.3} s",
+                "{:5} {:>9}: {}/{} = {:.3} right command ({} with confidence >= {HIGH}); errors: end-pointer {}, wrong words {}, rejected {}; end of speech -> result p50 {:.3} s p90 {:.3} s",
                 game.name(),
-                snr_name(snr),
-                ok as f64 / n as f64,
+                cond.name(),
+                t.ok,
+                t.n,
+                t.ok as f64 / t.n as f64,
+                t.right_sure,
+                t.vad,
+                t.dec,
+                t.rej,
                 pct(&lat, 0.5),
                 pct(&lat, 0.9),
             );
-            json.push(format!(
-                "\"{}_accuracy_{}\": {:.4}",
+            eprintln!(
+                "{:5} {:>9}: false accepts {}/{} utterances = {:.4}; out of grammar: {} of {} taken, {} would be asked \"Did you say ...?\"{}",
                 game.name(),
-                snr_name(snr),
-                ok as f64 / n as f64
+                cond.name(),
+                t.false_accepts,
+                t.heard,
+                fa,
+                t.oog_false,
+                t.oog,
+                t.oog_asked,
+                if t.alone > 0 {
+                    format!(
+                        "; talk alone: {} stretches of {TALK_ALONE_S} s, {} utterances cut, {} taken for a command",
+                        t.alone, t.alone_utterances, t.alone_false
+                    )
+                } else {
+                    String::new()
+                }
+            );
+            json.push(format!(
+                "\"{g}_accuracy_{c}\": {:.4}, \"{g}_false_accept_rate_{c}\": {:.4}",
+                t.ok as f64 / t.n as f64,
+                fa,
+                g = game.name(),
+                c = cond.name(),
             ));
         }
-        let (mut fa, mut n_oog, mut asked) = (0, 0, 0);
-        for (i, s) in OOG.iter().enumerate() {
-            for v in VOICES {
-                let voice = audio::synth::Voice {
-                    voice: v.to_string(),
-                    ..Default::default()
-                };
-                let speech = synthesize_16k(s, &voice).unwrap();
-                let a = mix_at_snr(
-                    &speech,
-                    20.0,
-                    NoiseKind::White,
-                    LEAD_S,
-                    TRAIL_S,
-                    &mut NoiseRng::new(i as u64 + 100),
-                );
-                let got = stream(&mut rec, &a, f64::NAN);
-                n_oog += 1;
-                let cmd = |r: &&(Recognized, f64)| r.0.command != Command::None;
-                if got.iter().filter(cmd).any(|r| r.0.confidence >= HIGH) {
-                    fa += 1;
-                } else if got.iter().filter(cmd).any(|r| r.0.confidence >= 0.3) {
-                    asked += 1;
-                }
-            }
-        }
-        eprintln!(
-            "{:5} out of grammar: false accepts {fa}/{n_oog}, {asked} would be asked \"Did you say ...?\"",
-            game.name()
-        );
-        json.push(format!(
-            "\"{}_false_accept_rate\": {:.4}, \"{}_oog_confirm_rate\": {:.4}",
-            game.name(),
-            fa as f64 / n_oog as f64,
-            game.name(),
-            asked as f64 / n_oog as f64
-        ));
     }
+    // The targets' aggregates, over both games.
+    let share = |names: &[&str]| {
+        let (ok, n) = names
+            .iter()
+            .filter_map(|c| both.get(*c))
+            .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        if n == 0 {
+            f64::NAN
+        } else {
+            ok as f64 / n as f64
+        }
+    };
+    for (key, names) in [
+        ("accuracy_10db_both", &["10"][..]),
+        (
+            "accuracy_clean_reverb_babble_both",
+            &["clean", "reverb", "babble_10"][..],
+        ),
+        ("accuracy_babble_10_both", &["babble_10"][..]),
+    ] {
+        let v = share(names);
+        eprintln!("both games, {}: {v:.3}", names.join(" + "));
+        if v.is_finite() {
+            json.push(format!("\"{key}\": {v:.4}"));
+        }
+    }
+    eprintln!(
+        "the most false accepts: {:.4} ({})",
+        worst_false.0, worst_false.1
+    );
+    json.push(format!("\"false_accept_rate_max\": {:.4}", worst_false.0));
     lat_all.sort_by(f64::total_cmp);
     eprintln!(
-        "both games, 10 dB: {all_ok10}/{all_n10} = {:.3}; real-time factor {:.3}; end of speech -> result p50 {:.3} s p90 {:.3} s p99 {:.3} s (end-pointer hangover {} s)",
-        all_ok10 as f64 / all_n10 as f64,
+        "real-time factor {:.3}; end of speech -> result p50 {:.3} s p90 {:.3} s p99 {:.3} s (end-pointer hangover {} s)",
         busy_s / audio_s,
         pct(&lat_all, 0.5),
         pct(&lat_all, 0.9),
@@ -266,9 +410,8 @@ fn main() {
         std::fs::write(d.join("truth.tsv"), truth).unwrap();
     }
     println!(
-        "{{{}, \"accuracy_10db_both\": {:.4}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}}}",
+        "{{{}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}}}",
         json.join(", "),
-        all_ok10 as f64 / all_n10 as f64,
         busy_s / audio_s,
         pct(&lat_all, 0.5),
         pct(&lat_all, 0.9),

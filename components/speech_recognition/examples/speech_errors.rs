@@ -2,12 +2,13 @@
 //! Where the recognition errors come from (tuning aid): every command of a game said by a set of
 //! voices at given SNRs, each error classified as an end-pointer error (not exactly one
 //! utterance cut), a decoding error (one utterance, wrong words) or a confidence rejection (right
-//! words, rejected as out of grammar). `speech_errors <touch|coach> <tune|eval> <snr>...`.
+//! words, rejected as out of grammar). `speech_errors <touch|coach> <tune|eval> <condition>...`,
+//! a condition as the benchmark names it (`clean`, `10` for white noise at 10 dB, `reverb`,
+//! `babble_10`, `fan_10`).
 //! Environment: `PS_ARGS` ("-name value ..." decoder options, e.g. `-hmm DIR` for another
 //! acoustic model), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
 //! `ROBUST=0` (PocketSphinx's own noise settings), `DENOISE=1` (the enhancement; `GFLOOR`,
 //! `OVERSUB` tune it), `VERBOSE` (list every error).
-use audio::signal::{NoiseKind, NoiseRng, mix_at_snr};
 use audio::synth::synthesize_16k;
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
@@ -15,18 +16,24 @@ use speech_recognition::grammar::{Grammar, grammar_dir};
 use speech_recognition::{Recognizer, RecognizerConfig};
 
 mod corpus;
-use corpus::{EVAL_VOICES, LEAD_S, SPEEDS, TRAIL_S, TUNE_VOICES, speech_end_s, voice};
+use corpus::{
+    BABBLE_TALKERS, Condition, EVAL_BABBLE, EVAL_VOICES, SPEEDS, TUNE_BABBLE, TUNE_VOICES,
+    babble_talkers, in_condition, speech_end_in, voice,
+};
 
 fn main() {
     let mut args = std::env::args().skip(1);
     let game = Game::from_name(&args.next().unwrap()).unwrap();
     let set = args.next().unwrap();
-    let snrs: Vec<f64> = args.map(|s| s.parse().unwrap()).collect();
-    let voices: &[&str] = if set == "tune" {
-        &TUNE_VOICES
+    let conditions: Vec<Condition> = args
+        .map(|s| Condition::parse(&s).unwrap_or_else(|| panic!("no condition {s:?}")))
+        .collect();
+    let (voices, background): (&[&str], _) = if set == "tune" {
+        (&TUNE_VOICES, TUNE_BABBLE)
     } else {
-        &EVAL_VOICES
+        (&EVAL_VOICES, EVAL_BABBLE)
     };
+    let talkers = babble_talkers(voices, background);
     let seed0 = if set == "tune" { 1000 } else { 1 };
     let mut dc = DecoderConfig::debian();
     if let Ok(a) = std::env::var("PS_ARGS") {
@@ -70,7 +77,7 @@ fn main() {
     // The configured acoustic model (a `-hmm` in `PS_ARGS` wins).
     dc.hmm_dir = cfg.acoustic_model.dir.clone();
     let mut rec = Recognizer::with_grammar(game, g, cfg, &dc).unwrap();
-    for snr in snrs {
+    for cond in conditions {
         let (mut n, mut ok, mut vad, mut dec, mut rej) = (0, 0, 0, 0, 0);
         let mut lines = vec![];
         let mut lat: Vec<f64> = vec![];
@@ -80,15 +87,14 @@ fn main() {
                 for c in Command::of_game(game) {
                     for ph in c.phrases() {
                         let speech = synthesize_16k(ph, &voice).unwrap();
-                        let a = mix_at_snr(
-                            &speech,
-                            snr,
-                            NoiseKind::White,
-                            LEAD_S,
-                            TRAIL_S,
-                            &mut NoiseRng::new(seed0 + (vi * 7 + si) as u64),
-                        );
-                        let end = speech_end_s(&speech);
+                        let others: Vec<Vec<i16>> = (0..talkers.len())
+                            .filter(|&i| i != vi)
+                            .take(BABBLE_TALKERS)
+                            .map(|i| talkers[i].clone())
+                            .collect();
+                        let a =
+                            in_condition(&speech, cond, n, &others, seed0 + (vi * 7 + si) as u64);
+                        let end = speech_end_in(&speech, cond);
                         let mut got = vec![];
                         let mut pos = 0;
                         for chunk in a.chunks(if std::env::var("WHOLE").is_ok() {
@@ -139,7 +145,8 @@ fn main() {
         }
         lat.sort_by(f64::total_cmp);
         println!(
-            "{game:?} {set} SNR {snr}: {ok}/{n} = {:.3}; end-pointer {vad}, decoding {dec}, rejected {rej}; end of speech to result p50 {:.3} s p90 {:.3} s",
+            "{game:?} {set} {}: {ok}/{n} = {:.3}; end-pointer {vad}, decoding {dec}, rejected {rej}; end of speech to result p50 {:.3} s p90 {:.3} s",
+            cond.name(),
             ok as f64 / n as f64,
             lat.get(lat.len() / 2).copied().unwrap_or(f64::NAN),
             lat.get(lat.len() * 9 / 10).copied().unwrap_or(f64::NAN),

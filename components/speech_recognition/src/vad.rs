@@ -14,6 +14,21 @@
 //! - It is **cut** at `max_utterance_s` (marked `forced`), and dropped if the loud part lasted
 //!   less than `min_speech_s` (a click, a cough).
 //!
+//! **Background talk.** Other people talking in the room (babble) is no steady noise: its level
+//! swings by 10 dB and more from one syllable to the next, so a floor that follows the quietest
+//! frames sits far under it and every syllable of it would start an utterance. The detector
+//! therefore also keeps the levels of the last `background_s` of frames heard outside
+//! utterances (and those of an utterance cut at `max_utterance_s` or dropped as too short: they
+//! were the background too). When their spread (90th minus 20th percentile) is at least
+//! `background_spread_db` and most of them are loud over the floor (talk goes on; the
+//! reverberation of a room after speech dies away), the background is speech-like and a frame
+//! is loud only if it is also
+//! `background_margin_db` over the background's 90th percentile: a command said over the talk
+//! (louder than it, as a person speaking to the robot is) starts an utterance, the talk does
+//! not; such an utterance keeps only `talk_margin_s` of the talk before and after it (the
+//! pre-roll and the tail are talk, which a decoder would take for words). Steady noise (a fan, an air conditioner, white noise) has a spread of a few dB and is
+//! left to the floor alone.
+//!
 //! Times are sample indices on the stream (from 0), so the caller turns them into seconds.
 
 use std::collections::VecDeque;
@@ -36,6 +51,10 @@ pub struct VadConfig {
     pub min_speech_s: f64,
     pub max_utterance_s: f64,
     pub floor_rise_db_per_s: f64,
+    pub background_s: f64,
+    pub background_spread_db: f64,
+    pub background_margin_db: f64,
+    pub talk_margin_s: f64,
 }
 
 impl Default for VadConfig {
@@ -49,8 +68,15 @@ impl Default for VadConfig {
             hangover_s: 0.25,
             tail_s: 0.2,
             min_speech_s: 0.08,
-            max_utterance_s: 8.0,
+            // The longest command of the games, said slowly ("robot please go to the ball and
+            // dribble" at 130 words a minute), lasts 3.5 s: speech running on past this is
+            // talk in the room, not a command (and becomes its background, see the module doc).
+            max_utterance_s: 5.0,
             floor_rise_db_per_s: 2.0,
+            background_s: 3.0,
+            background_spread_db: 7.0,
+            background_margin_db: 3.0,
+            talk_margin_s: 0.08,
         }
     }
 }
@@ -87,6 +113,11 @@ struct Open {
     loud_frames: usize,
     quiet_frames: usize,
     lead_len: usize,
+    /// The smoothed level of each frame since it opened (dBFS): the background's, if it turns
+    /// out to be no utterance.
+    levels: Vec<f64>,
+    /// The background talk's threshold when it opened (see [`Vad::talk_threshold`]).
+    talk_threshold: Option<f64>,
 }
 
 /// The end-pointer; feed it any chunk sizes.
@@ -104,6 +135,10 @@ pub struct Vad {
     open: Option<Open>,
     /// Stream position of the first sample of `pending`.
     pos: u64,
+    /// Smoothed levels of the last `background_s` of frames heard outside utterances (dBFS),
+    /// oldest first, and the same sorted.
+    background: VecDeque<f64>,
+    background_sorted: Vec<f64>,
     /// Utterances dropped as too short.
     pub dropped_short: u64,
 }
@@ -142,8 +177,48 @@ impl Vad {
             loud_run: 0,
             open: None,
             pos: 0,
+            background: VecDeque::new(),
+            background_sorted: Vec::new(),
             dropped_short: 0,
         }
+    }
+
+    /// Add a frame's smoothed level to the background (digital silence too: a room that fell
+    /// silent has no talk in it any more).
+    fn hear_background(&mut self, level: f64) {
+        let cap = Self::frames(self.cfg.background_s).max(1);
+        while self.background.len() >= cap {
+            if let Some(old) = self.background.pop_front()
+                && let Ok(i) = self
+                    .background_sorted
+                    .binary_search_by(|x| x.total_cmp(&old))
+            {
+                self.background_sorted.remove(i);
+            }
+        }
+        self.background.push_back(level);
+        let i = self
+            .background_sorted
+            .partition_point(|x| x.total_cmp(&level).is_lt());
+        self.background_sorted.insert(i, level);
+    }
+
+    /// The level a frame must reach to be speech over background talk (dBFS), when the
+    /// background is speech-like (see the module doc); `None` for steady noise, or before a
+    /// second of background was heard.
+    pub fn talk_threshold(&self) -> Option<f64> {
+        let b = &self.background_sorted;
+        if b.len() < Self::frames(1.0) {
+            return None;
+        }
+        let q = |p: f64| b[((b.len() - 1) as f64 * p).round() as usize];
+        let (low, high) = (q(0.2), q(0.9));
+        // Talk goes on: most of it is loud over the floor. A room that rang after speech (its
+        // reverberation decaying into quiet) or a few loud sounds in steady noise is not talk.
+        let floor = self.floor_db?;
+        let loud = b.len() - b.partition_point(|&x| x < floor + self.cfg.start_db);
+        (high - low >= self.cfg.background_spread_db && loud * 2 >= b.len())
+            .then_some(high + self.cfg.background_margin_db)
     }
 
     /// Whether an utterance is under way.
@@ -158,8 +233,7 @@ impl Vad {
     /// Also the length of its background lead ([`Segment::lead_len`]).
     pub fn open_prefix(&self) -> Option<(u64, &[i16], usize)> {
         let open = self.open.as_ref()?;
-        let keep =
-            (open.last_loud_len + Self::frames(self.cfg.tail_s) * FRAME).min(open.samples.len());
+        let keep = (open.last_loud_len + self.tail_frames(open) * FRAME).min(open.samples.len());
         Some((open.start_sample, &open.samples[..keep], open.lead_len))
     }
 
@@ -172,6 +246,14 @@ impl Vad {
     /// The current noise floor estimate (dBFS).
     pub fn floor_dbfs(&self) -> Option<f64> {
         self.floor_db
+    }
+
+    /// The quiet kept after an utterance's last loud frame (frames): less over talk.
+    fn tail_frames(&self, open: &Open) -> usize {
+        Self::frames(match open.talk_threshold {
+            Some(_) => self.cfg.talk_margin_s,
+            None => self.cfg.tail_s,
+        })
     }
 
     fn frames(s: f64) -> usize {
@@ -207,11 +289,21 @@ impl Vad {
         self.loud_run = 0;
         if (open.loud_frames as f64) * (FRAME as f64) / (RATE_HZ as f64) < self.cfg.min_speech_s {
             self.dropped_short += 1;
+            for &l in &open.levels {
+                self.hear_background(l);
+            }
             return None;
         }
+        if forced {
+            // Talk that never paused: the room's, not a command to the robot.
+            let levels = std::mem::take(&mut open.levels);
+            for l in levels {
+                self.hear_background(l);
+            }
+        }
         if !forced {
-            let keep = (open.last_loud_len + Self::frames(self.cfg.tail_s) * FRAME)
-                .min(open.samples.len());
+            let keep =
+                (open.last_loud_len + self.tail_frames(&open) * FRAME).min(open.samples.len());
             open.samples.truncate(keep);
         }
         Some(Segment {
@@ -267,14 +359,29 @@ impl Vad {
             self.floor_db = Some(new_floor);
         }
         let above = level - floor;
-        let loud = level > self.cfg.min_level_dbfs && above >= self.cfg.start_db;
-        let still_loud =
-            level > self.cfg.min_level_dbfs && above >= self.cfg.start_db - self.cfg.hysteresis_db;
+        // Over background talk, the talk's threshold too: the one in force when the utterance
+        // opened, while it is open.
+        let talk = match &self.open {
+            Some(open) => open.talk_threshold,
+            None => self.talk_threshold(),
+        };
+        let loud = level > self.cfg.min_level_dbfs
+            && above >= self.cfg.start_db
+            && talk.is_none_or(|t| level >= t);
+        let still_loud = level > self.cfg.min_level_dbfs
+            && above >= self.cfg.start_db - self.cfg.hysteresis_db
+            && talk.is_none_or(|t| level >= t - self.cfg.hysteresis_db);
 
-        let preroll = Self::frames(self.cfg.preroll_s).max(self.cfg.start_frames);
+        // Over talk, the pre-roll and the tail are talk too: the utterance keeps little of them.
+        let preroll_s = match talk {
+            Some(_) => self.cfg.talk_margin_s,
+            None => self.cfg.preroll_s,
+        };
+        let preroll = Self::frames(preroll_s).max(self.cfg.start_frames);
         match self.open.as_mut() {
             None => {
                 self.loud_run = if loud { self.loud_run + 1 } else { 0 };
+                self.hear_background(level);
                 self.history.push_back(f);
                 while self.history.len() > preroll {
                     self.history.pop_front();
@@ -291,12 +398,15 @@ impl Vad {
                         samples,
                         loud_frames: self.loud_run,
                         quiet_frames: 0,
+                        levels: Vec::new(),
+                        talk_threshold: talk,
                     });
                 }
                 None
             }
             Some(open) => {
                 open.samples.extend_from_slice(&f);
+                open.levels.push(level);
                 if still_loud {
                     open.loud_frames += 1;
                     open.quiet_frames = 0;
@@ -431,5 +541,129 @@ mod tests {
         assert!(vad.push(&s).is_empty());
         assert!(vad.in_speech());
         assert!(vad.flush().is_some());
+    }
+
+    /// Three people talking in the room, and then someone saying a command over them, 10 dB
+    /// louder: once the detector has heard a few seconds of the talk it cuts no utterance out
+    /// of it, and the command is one utterance with its times. Without the background's
+    /// threshold (the floor alone) the same talk opens utterance after utterance.
+    #[test]
+    fn background_talk_is_not_taken_for_speech_and_a_command_over_it_is() {
+        use audio::signal::{active_power, babble, power};
+        use audio::synth::{Voice, synthesize_16k};
+        let sentences = [
+            "the bakery on the corner opens at seven every morning",
+            "we drove along the coast and stopped for lunch in a small village",
+            "he keeps his old records in a box under the stairs",
+            "the garden looks lovely after the rain in spring",
+        ];
+        let talkers: Vec<Vec<i16>> = ["en-us+m2", "en-gb+f5", "en-us+f1"]
+            .iter()
+            .enumerate()
+            .map(|(k, v)| {
+                let voice = Voice {
+                    voice: (*v).into(),
+                    speed_wpm: 160 + 10 * k as u32,
+                    pitch: 40 + 5 * k as u8,
+                };
+                sentences
+                    .iter()
+                    .cycle()
+                    .skip(k)
+                    .take(sentences.len())
+                    .flat_map(|s| {
+                        let mut pcm = synthesize_16k(s, &voice).expect("espeak-ng");
+                        pcm.extend(vec![0i16; 3200]);
+                        pcm
+                    })
+                    .collect()
+            })
+            .collect();
+        let command = synthesize_16k("touch the ball", &Voice::default()).expect("espeak-ng");
+        let talk_s = 12.0;
+        let n = (talk_s * 16_000.0) as usize;
+        // The talk at -30 dBFS, the command 10 dB over it, said 8 s into the talk.
+        let b = babble(&talkers, n, 1e-3, &mut NoiseRng::new(5));
+        let g_cmd = (1e-2 / active_power(&command)).sqrt();
+        let at = 8 * 16_000;
+        let mut stream = with_noise(vec![0i16; 16_000], 1e-6, 9); // 1 s of a quiet room
+        stream.extend((0..n).map(|i| {
+            let c = if i >= at && i - at < command.len() {
+                f64::from(command[i - at]) * g_cmd
+            } else {
+                0.0
+            };
+            (b[i] + c).round().clamp(-32768.0, 32767.0) as i16
+        }));
+        assert!((10.0 * power(&stream[16_000..16_000 + at]).log10() + 30.0).abs() < 1.5);
+        let cut = |cfg: VadConfig| {
+            let mut vad = Vad::new(cfg);
+            let mut segs = vec![];
+            for c in stream.chunks(320) {
+                segs.extend(vad.push(c));
+            }
+            segs.extend(vad.flush());
+            (segs, vad.dropped_short)
+        };
+        let command_start = 1.0 + 8.0;
+        // Where its sound ends (espeak-ng ends a sentence with silence).
+        let loud_until = command
+            .iter()
+            .rposition(|x| x.unsigned_abs() > 300)
+            .unwrap_or(0);
+        let command_end = command_start + loud_until as f64 / 16_000.0;
+        let (segs, _) = cut(VadConfig::default());
+        // The talk's start, heard against a quiet room, is speech at first: it is cut at
+        // `max_utterance_s` and from then on is the background. After that the only utterance
+        // is the command.
+        let first = &segs[0];
+        assert!(
+            first.forced && first.start_s() < 1.1,
+            "{:?}",
+            (first.start_s(), first.end_s())
+        );
+        let later: Vec<&Segment> = segs
+            .iter()
+            .skip(1)
+            .filter(|s| s.end_s() > first.end_s())
+            .collect();
+        assert_eq!(segs.len(), later.len() + 1);
+        assert_eq!(
+            later.len(),
+            1,
+            "{:?}",
+            segs.iter()
+                .map(|s| (s.start_s(), s.end_s()))
+                .collect::<Vec<_>>()
+        );
+        let c = later[0];
+        assert!(!c.forced);
+        assert!(
+            c.start_s() > command_start - 0.4 && c.start_s() < command_start + 0.15,
+            "starts at {:.2} s, the command at {command_start:.2} s",
+            c.start_s()
+        );
+        assert!(
+            c.end_s() > command_end - 0.1 && c.end_s() < command_end + 0.6,
+            "ends at {:.2} s, the command at {command_end:.2} s",
+            c.end_s()
+        );
+        // The floor alone takes the talk for speech: utterance after utterance cut at
+        // `max_utterance_s`, and the command is no utterance of its own.
+        let (segs, _) = cut(VadConfig {
+            background_spread_db: f64::INFINITY,
+            ..VadConfig::default()
+        });
+        let times: Vec<(f64, f64, bool)> = segs
+            .iter()
+            .map(|s| (s.start_s(), s.end_s(), s.forced))
+            .collect();
+        assert!(segs.iter().filter(|s| s.forced).count() >= 2, "{times:?}");
+        assert!(
+            !segs.iter().any(|s| !s.forced
+                && (s.start_s() - command_start).abs() < 0.4
+                && (s.end_s() - command_end).abs() < 0.6),
+            "without the background threshold the command was cut alone: {times:?}"
+        );
     }
 }
