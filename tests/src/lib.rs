@@ -548,6 +548,42 @@ impl SoundServer {
         )
         .expect("sound server script");
         let log = dir.join("server.log");
+        let server = SoundServer {
+            child: Self::spawn(&dir, &script, &log),
+            address: format!("unix:{}", socket.display()),
+            dir,
+            log,
+        };
+        server.wait_until_it_answers();
+        server
+    }
+
+    /// Kill the server (as a crash would) and start it again on the same socket with the same
+    /// devices, waiting (10 s at most) until it answers; its log goes on in the same file.
+    pub fn restart(&mut self) {
+        self.kill();
+        let script = self.dir.join("room.pa");
+        self.child = Self::spawn(&self.dir, &script, &self.log);
+        self.wait_until_it_answers();
+    }
+
+    /// Kill the server, as a crash would (its socket file is removed, as it would not be).
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_file(self.dir.join("native"));
+    }
+
+    fn wait_until_it_answers(&self) {
+        eventually("the sound server answers", Duration::from_secs(10), || {
+            self.pactl(&["list", "short", "sources"])
+                .status
+                .success()
+                .then_some(())
+        });
+    }
+
+    fn spawn(dir: &Path, script: &Path, log: &Path) -> Child {
         use std::os::unix::fs::MetadataExt;
         let root = std::fs::metadata("/proc/self").is_ok_and(|m| m.uid() == 0);
         let mut cmd = Command::new("pulseaudio");
@@ -563,29 +599,20 @@ impl SoundServer {
             "-n",
             "-F",
         ])
-        .arg(&script)
+        .arg(script)
         // Its runtime folder (made by the server itself, which insists on owning it).
         .env("PULSE_RUNTIME_PATH", dir.join("runtime"))
         .stdin(Stdio::null())
         .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&log).expect("sound server log"));
-        let child = cmd
-            .spawn()
-            .expect("start pulseaudio (Debian's pulseaudio package; scripts/test installs it)");
-        let server = SoundServer {
-            child,
-            dir,
-            address: format!("unix:{}", socket.display()),
-            log,
-        };
-        eventually("the sound server answers", Duration::from_secs(10), || {
-            server
-                .pactl(&["list", "short", "sources"])
-                .status
-                .success()
-                .then_some(())
-        });
-        server
+        .stderr(
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(log)
+                .expect("sound server log"),
+        );
+        cmd.spawn()
+            .expect("start pulseaudio (Debian's pulseaudio package; scripts/test installs it)")
     }
 
     /// Run `pactl` against this server.
@@ -617,10 +644,8 @@ impl SoundServer {
 
 impl Drop for SoundServer {
     fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
         // The folder (with the server's log) stays for a failed test to be read; the scratch
         // folders are pruned by later runs.
-        let _ = std::fs::remove_file(self.dir.join("native"));
+        self.kill();
     }
 }

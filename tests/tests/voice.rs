@@ -521,21 +521,76 @@ fn a_microphone_that_is_not_there_is_named_with_the_ones_there_are() {
 /// is opened again and the robot says so.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_microphone_lost_mid_game_is_said_and_opened_again_when_it_is_back() {
-    let (server, launch, bus, _) = sound_graph("lostmic", "audio_io").await;
+    let (mut server, launch, bus, _) = sound_graph("lostmic", "audio_io").await;
+    lost_and_back(
+        &mut server,
+        &launch,
+        &bus,
+        |server| {
+            let modules =
+                String::from_utf8_lossy(&server.pactl(&["list", "short", "modules"]).stdout)
+                    .to_string();
+            let index = modules
+                .lines()
+                .find(|l| l.contains("module-virtual-source"))
+                .and_then(|l| l.split_whitespace().next())
+                .unwrap_or_else(|| panic!("no microphone module in\n{modules}"))
+                .to_string();
+            assert!(server.pactl(&["unload-module", &index]).status.success());
+        },
+        |server| {
+            let load = [
+                "load-module",
+                "module-virtual-source",
+                "source_name=mic",
+                "master=room.monitor",
+            ];
+            assert!(server.pactl(&load).status.success());
+        },
+    )
+    .await;
+}
+
+/// The whole sound server dies in the middle of a game (it crashed, or the session that ran it
+/// ended) and comes back: `audio_io` does not exit (a restart would find no server and stop the
+/// graph), it logs and counts the microphone lost, the robot says it cannot hear, and when the
+/// server is back the microphone is opened again, the robot says so and it captures again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sound_server_that_dies_and_comes_back_is_said_and_reopened() {
+    let (mut server, launch, bus, _) = sound_graph("deadserver", "audio_io").await;
+    lost_and_back(
+        &mut server,
+        &launch,
+        &bus,
+        SoundServer::kill,
+        SoundServer::restart,
+    )
+    .await;
+    // One process all along: audio_io was never restarted.
+    assert_eq!(
+        launch.lines.count(|l| l.contains("started audio_io")),
+        1,
+        "audio_io was restarted:\n{}",
+        launch.lines.all().join("\n")
+    );
+}
+
+/// Once the graph is up, `lose` the microphone: the robot says it cannot hear, `audio_io` logs
+/// and counts it; then `restore` it: the robot says it hears again, `audio_io` logs it and
+/// captures again.
+async fn lost_and_back(
+    server: &mut SoundServer,
+    launch: &Launch,
+    bus: &Bus,
+    lose: impl FnOnce(&mut SoundServer),
+    restore: impl FnOnce(&mut SoundServer),
+) {
     let said = bus.subscriber(&topics::SPEECH_SAY).await.unwrap();
     let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
     // The dialog has seen the recognizer and the microphone (it says nothing until it has).
     tokio::time::sleep(Duration::from_secs(2)).await;
 
-    let modules =
-        String::from_utf8_lossy(&server.pactl(&["list", "short", "modules"]).stdout).to_string();
-    let index = modules
-        .lines()
-        .find(|l| l.contains("module-virtual-source"))
-        .and_then(|l| l.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no microphone module in\n{modules}"))
-        .to_string();
-    assert!(server.pactl(&["unload-module", &index]).status.success());
+    lose(server);
     let line = next_line(&said, Duration::from_secs(15)).await;
     assert_eq!(line, "I can't hear you for a moment. Please wait.");
     launch
@@ -548,17 +603,7 @@ async fn a_microphone_lost_mid_game_is_said_and_opened_again_when_it_is_back() {
     })
     .await;
 
-    assert!(
-        server
-            .pactl(&[
-                "load-module",
-                "module-virtual-source",
-                "source_name=mic",
-                "master=room.monitor"
-            ])
-            .status
-            .success()
-    );
+    restore(server);
     let line = next_line(&said, Duration::from_secs(15)).await;
     assert_eq!(line, "I can hear you again.");
     launch

@@ -124,10 +124,15 @@ pub fn noise(n: usize, kind: NoiseKind, power_fs: f64, rng: &mut NoiseRng) -> Ve
         }
         NoiseKind::Fan => FanParams::draw(rng).generate(n, rng),
     };
-    let p = if n == 0 {
+    scaled_to_power(&v, power_fs)
+}
+
+/// `v` (full-scale units) scaled to power `power_fs`, in sample units (silence stays silence).
+fn scaled_to_power(v: &[f64], power_fs: f64) -> Vec<f64> {
+    let p = if v.is_empty() {
         1.0
     } else {
-        v.iter().map(|x| x * x).sum::<f64>() / n as f64
+        v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64
     };
     let gain = if p > 0.0 { (power_fs / p).sqrt() } else { 0.0 };
     v.iter().map(|x| x * gain * 32768.0).collect()
@@ -288,13 +293,7 @@ pub fn babble(talkers: &[Vec<i16>], n: usize, power_fs: f64, rng: &mut NoiseRng)
             *x += s as f64 * gain;
         }
     }
-    let p = if n == 0 {
-        1.0
-    } else {
-        v.iter().map(|x| x * x).sum::<f64>() / n as f64
-    };
-    let gain = if p > 0.0 { (power_fs / p).sqrt() } else { 0.0 };
-    v.iter().map(|x| x * gain * 32768.0).collect()
+    scaled_to_power(&v, power_fs)
 }
 
 /// Place `speech` after `lead_s` of `noise`, followed by `trail_s` of it, at 16 kHz, as
