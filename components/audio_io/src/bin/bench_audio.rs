@@ -127,30 +127,35 @@ impl Levels {
     }
 }
 
-/// The robot's `sentences` through `audio_io` with `mode`: the first sentence (adapting) and
-/// the rest.
-async fn echo(
+/// `audio_io` run in this process between `source` and `sink`, on a router of its own in
+/// namespace `namespace`: the router (open while this is held), the bench's own bus on it,
+/// the shutdown sender and the running component.
+async fn start_audio_io(
     args: &Args,
-    mode: EchoCancel,
-    sentences: &[Vec<i16>],
-) -> anyhow::Result<(Echo, Echo)> {
-    let (_router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
-    let connect = ConnectArgs::to_router(
-        &endpoint,
-        &format!("bench-echo-{}-{mode:?}", std::process::id()),
-    );
+    namespace: &str,
+    source: &str,
+    sink: &str,
+    echo_cancel: EchoCancel,
+) -> anyhow::Result<(
+    Box<dyn std::any::Any + Send>,
+    Bus,
+    tokio::sync::watch::Sender<bool>,
+    tokio::task::JoinHandle<anyhow::Result<()>>,
+)> {
+    let (router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
+    let connect = ConnectArgs::to_router(&endpoint, namespace);
     let config = Config {
         driver: Driver::Pulse,
         server: args.server.clone(),
-        source: args.echo_mic.clone(),
-        sink: args.echo_speaker.clone(),
+        source: source.to_string(),
+        sink: sink.to_string(),
         no_capture: false,
         no_playback: false,
         rate_hz: RATE_HZ,
         chunk_ms: 20,
         playback_buffer_ms: BUFFER.as_millis() as u32,
         reopen_s: 1.0,
-        echo_cancel: mode,
+        echo_cancel,
         pause_on_speech: false,
         resume_after_s: 0.8,
     };
@@ -159,6 +164,24 @@ async fn echo(
     let (stop, shutdown) = Shutdown::new();
     let running = tokio::spawn(component::run(component_bus, prepared, shutdown));
     let bus = Bus::open(&connect, "bench_audio").await?;
+    Ok((Box::new(router), bus, stop, running))
+}
+
+/// The robot's `sentences` through `audio_io` with `mode`: the first sentence (adapting) and
+/// the rest.
+async fn echo(
+    args: &Args,
+    mode: EchoCancel,
+    sentences: &[Vec<i16>],
+) -> anyhow::Result<(Echo, Echo)> {
+    let (_router, bus, stop, running) = start_audio_io(
+        args,
+        &format!("bench-echo-{}-{mode:?}", std::process::id()),
+        &args.echo_mic,
+        &args.echo_speaker,
+        mode,
+    )
+    .await?;
     let out = bus.publisher(&topics::AUDIO_OUT).await?;
     let heard = bus.subscriber(&topics::AUDIO_IN).await?;
     tokio::time::timeout(Duration::from_secs(10), heard.recv()).await??;
@@ -322,28 +345,14 @@ fn floor(args: &Args) -> anyhow::Result<Vec<f64>> {
 /// Through robocog: `audio/out` to `audio/in` via `audio_io`. Returns the round trips and the
 /// capture-to-bus delays (ms).
 async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    let (_router, endpoint) = open_router("tcp/127.0.0.1:0").await?;
-    let connect = ConnectArgs::to_router(&endpoint, &format!("bench-audio-{}", std::process::id()));
-    let config = Config {
-        driver: Driver::Pulse,
-        server: args.server.clone(),
-        source: args.source.clone(),
-        sink: args.sink.clone(),
-        no_capture: false,
-        no_playback: false,
-        rate_hz: RATE_HZ,
-        chunk_ms: 20,
-        playback_buffer_ms: BUFFER.as_millis() as u32,
-        reopen_s: 1.0,
-        echo_cancel: EchoCancel::None,
-        pause_on_speech: false,
-        resume_after_s: 0.8,
-    };
-    let prepared = component::prepare(config)?;
-    let component_bus = Bus::open(&connect, "audio_io").await?;
-    let (stop, shutdown) = Shutdown::new();
-    let running = tokio::spawn(component::run(component_bus, prepared, shutdown));
-    let bus = Bus::open(&connect, "bench_audio").await?;
+    let (_router, bus, stop, running) = start_audio_io(
+        args,
+        &format!("bench-audio-{}", std::process::id()),
+        &args.source,
+        &args.sink,
+        EchoCancel::None,
+    )
+    .await?;
     let out = bus.publisher(&topics::AUDIO_OUT).await?;
     let heard = bus.subscriber(&topics::AUDIO_IN).await?;
     // Wait until the microphone's chunks arrive (the subscription has reached the router).
