@@ -14,6 +14,27 @@ pub const CHATTER: Topic<std_msgs::Text> = Topic::new("chatter");
 /// An echo service (fixtures, health checks): replies with the request's text.
 pub const ECHO: Service<std_msgs::Text, std_msgs::Text> = Service::new("echo");
 
+// The agents of a graph over several machines (`robocog agent`).
+/// What the components an agent runs write and when they exit, for the launcher.
+pub const AGENT_EVENTS: Topic<crate::msg::agent::AgentEvent> = Topic::new("agent/events");
+/// The control service of one machine's agent (`agent/<machine>/control`): start, stop, status.
+/// `None` when `machine` is not a lowercase name (`[a-z0-9_-]`). The name lives as long as the
+/// process (one per machine of the graph).
+pub fn agent_control(
+    machine: &str,
+) -> Option<Service<crate::msg::agent::AgentRequest, crate::msg::agent::AgentReply>> {
+    if !is_valid_machine(machine) {
+        return None;
+    }
+    let name: &'static str = Box::leak(format!("agent/{machine}/control").into_boxed_str());
+    Some(Service::new(name))
+}
+
+/// Whether `machine` can name a machine of a graph: lowercase letters, digits, `_`, `-`.
+pub fn is_valid_machine(machine: &str) -> bool {
+    !machine.contains('/') && crate::topic::is_valid_name(machine)
+}
+
 /// The bus benchmark's probes.
 pub const BENCH_PING: Topic<std_msgs::Ping> = Topic::new("bench/ping");
 pub const BENCH_PONG: Topic<std_msgs::Ping> = Topic::new("bench/pong");

@@ -6,10 +6,15 @@
 //! - `robocog record` / `robocog replay` write a graph's topics to an MCAP file and publish them
 //!   back ([`mcap_io`]).
 //!
+//! - `robocog agent` runs one machine's share of a graph over several machines ([`agent`],
+//!   [`machines`]); `robocog certs` makes the certificates of its links.
+//!
 //! One file per verb lives in [`command`].
 
+pub mod agent;
 pub mod check;
 pub mod command;
+pub mod machines;
 pub mod manifest;
 pub mod mcap_io;
 pub mod supervisor;

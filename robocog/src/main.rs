@@ -14,6 +14,11 @@ struct Cli {
 enum Verb {
     /// Run every component of a launch manifest as a process, with a router on loopback.
     Launch(command::launch::Args),
+    /// Run one machine's share of a graph over several machines: its router, and the components
+    /// the launcher places on it.
+    Agent(command::agent::Args),
+    /// Make the certificates of a graph over several machines: a CA and one per machine.
+    Certs(command::certs::Args),
     /// Validate a launch manifest: keys, binaries, dependencies, topics, hardware claims.
     Check(command::check::Args),
     /// List, echo, measure, describe or publish topics of a running graph.
@@ -51,6 +56,8 @@ fn main() -> ExitCode {
     let result = runtime.block_on(async move {
         match cli.verb {
             Verb::Launch(a) => command::launch::execute(a).await,
+            Verb::Agent(a) => command::agent::execute(a).await,
+            Verb::Certs(a) => command::certs::execute(a),
             Verb::Topic(a) => command::topic::execute(a).await,
             Verb::Service(a) => command::service::execute(a).await,
             Verb::Component(a) => command::component::execute(a).await,

@@ -7,6 +7,14 @@
 //! name = "touch_the_ball"
 //! namespace = "loki"                 # --namespace wins; default "default"
 //! router = "tcp/127.0.0.1:7447"      # the launcher's router; --router wins; port 0 = any free port
+//! certs = "certs"                    # with [machines]: the folder of the graph's certificates
+//!                                    # (ca.pem, <machine>.pem, <machine>.key; `robocog certs`)
+//! insecure_bus = false               # true: allow plain tcp/ between machines (no TLS, no ACL)
+//!
+//! [machines.robot]                   # a graph over several machines (none: one machine)
+//! router = "tls/10.0.0.2:7447"       # where the other machines reach this machine's router
+//! [machines.speech]
+//! router = "tls/10.0.0.3:7447"
 //!
 //! [vars]                             # ${name} in binary, args, env and hardware; --set name=value
 //! robot = "sim"
@@ -30,6 +38,7 @@
 //! completes_graph = false            # true: when it exits 0, the graph is done (the launcher exits 0)
 //! external_inputs = ["audio/in"]     # inputs fed from outside the graph (a bridge, a test, a user):
 //!                                    # topics it subscribes to, or services it calls
+//! machine = "robot"                  # with [machines]: where it runs (default: the launcher's)
 //! enabled = "${simulate}"            # "true" (default) or "false" after substitution: a profile
 //!                                    # can switch a simulator off when real hardware is used;
 //!                                    # two components may share a name if at most one is enabled
@@ -112,7 +121,15 @@ struct RawManifest {
     #[serde(default)]
     profiles: BTreeMap<String, BTreeMap<String, String>>,
     #[serde(default)]
+    machines: BTreeMap<String, Spanned<RawMachine>>,
+    #[serde(default)]
     component: Vec<RawComponent>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMachine {
+    router: String,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -121,6 +138,8 @@ struct RawGraph {
     name: Option<String>,
     namespace: Option<String>,
     router: Option<String>,
+    certs: Option<String>,
+    insecure_bus: Option<bool>,
 }
 
 fn default_true() -> bool {
@@ -169,6 +188,23 @@ struct RawComponent {
     #[serde(default)]
     external_inputs: Vec<String>,
     enabled: Option<Spanned<String>>,
+    machine: Option<Spanned<String>>,
+}
+
+/// One machine of a graph over several: its router, which the other machines' routers join.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Machine {
+    pub name: String,
+    /// The endpoint the other machines reach this machine's router on (`tls/10.0.0.2:7447`).
+    pub router: String,
+    pub origin: Origin,
+}
+
+impl Machine {
+    /// Whether its router is reached with TLS.
+    pub fn is_tls(&self) -> bool {
+        self.router.starts_with("tls/")
+    }
 }
 
 /// One component of a resolved graph.
@@ -194,6 +230,8 @@ pub struct Component {
     pub origin: Origin,
     /// The directory of the manifest that declared it (relative binary paths start there).
     pub dir: PathBuf,
+    /// The machine it runs on; `None`: the launcher's.
+    pub machine: Option<String>,
 }
 
 /// A resolved graph: includes merged, variables substituted, checked.
@@ -205,6 +243,13 @@ pub struct Manifest {
     pub vars: BTreeMap<String, String>,
     pub components: Vec<Component>,
     pub file: PathBuf,
+    /// The machines of a graph over several (empty: everything on the launcher's machine).
+    pub machines: Vec<Machine>,
+    /// The folder of the graph's certificates (absolute, or relative to the top manifest's
+    /// folder as written), for TLS between machines.
+    pub certs: Option<PathBuf>,
+    /// Plain tcp/ allowed between machines.
+    pub insecure_bus: bool,
 }
 
 /// Options that change a manifest from the command line (shared by `check` and `launch`).
@@ -365,12 +410,33 @@ impl Manifest {
 
         // Graph settings: the top file wins over includes.
         let (mut name, mut namespace, mut router) = (None, None, None);
+        let (mut certs, mut insecure_bus) = (None, false);
+        let mut machines: BTreeMap<String, Machine> = BTreeMap::new();
         let mut vars = BTreeMap::new();
         let mut profiles: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
         for l in &loaded {
             name = l.raw.graph.name.clone().or(name);
             namespace = l.raw.graph.namespace.clone().or(namespace);
             router = l.raw.graph.router.clone().or(router);
+            if let Some(c) = &l.raw.graph.certs {
+                let dir = l.file.parent().unwrap_or(Path::new("."));
+                certs = Some(dir.join(c));
+            }
+            insecure_bus = l.raw.graph.insecure_bus.unwrap_or(insecure_bus);
+            for (m, raw) in &l.raw.machines {
+                let origin = Origin {
+                    file: l.file.clone(),
+                    line: line_of(&l.src, raw.span().start),
+                };
+                machines.insert(
+                    m.clone(),
+                    Machine {
+                        name: m.clone(),
+                        router: raw.get_ref().router.clone(),
+                        origin,
+                    },
+                );
+            }
             vars.extend(l.raw.vars.clone());
             for (p, v) in &l.raw.profiles {
                 profiles.entry(p.clone()).or_default().extend(v.clone());
@@ -480,6 +546,32 @@ impl Manifest {
                         Duration::from_secs(1)
                     }
                 };
+                let machine = match &rc.machine {
+                    None => None,
+                    Some(m) => {
+                        let m_name = sub(m.get_ref());
+                        if machines.contains_key(&m_name) {
+                            Some(m_name)
+                        } else {
+                            let known: Vec<&str> = machines.keys().map(String::as_str).collect();
+                            problems.push(Problem {
+                                origin: origin_of(m.span()),
+                                message: if known.is_empty() {
+                                    format!(
+                                        "component {cname:?} is placed on machine {m_name:?}, but the graph declares no [machines]"
+                                    )
+                                } else {
+                                    format!(
+                                        "component {cname:?} is placed on unknown machine {m_name:?} (machines: {})",
+                                        known.join(", ")
+                                    )
+                                },
+                            });
+                            None
+                        }
+                    }
+                };
+                problems.extend(sub_errors.take());
                 let ready_timeout = secs(rc.ready_timeout_s, "ready_timeout_s", &mut problems);
                 let stop_timeout = secs(rc.stop_timeout_s, "stop_timeout_s", &mut problems);
                 components.push(Component {
@@ -499,6 +591,7 @@ impl Manifest {
                     external_inputs: rc.external_inputs.clone(),
                     origin: origin.clone(),
                     dir: l.file.parent().unwrap_or(Path::new(".")).to_path_buf(),
+                    machine,
                 });
                 // Unknown dependencies, reported at the dependency's own line.
                 for d in &rc.depends_on {
@@ -538,25 +631,34 @@ impl Manifest {
             });
         }
 
-        // Two components claiming one hardware port.
-        let mut claims: HashMap<String, (String, Origin)> = HashMap::new();
+        // Two components claiming one hardware port of one machine (a component placed on no
+        // machine is on the launcher's, which is not known here: "" stands for it).
+        let mut claims: HashMap<(String, String), (String, Origin)> = HashMap::new();
         for c in &components {
+            let machine = c.machine.clone().unwrap_or_default();
             for (h, origin) in &c.hardware {
-                if let Some((other, first)) = claims.get(h) {
+                let key = (machine.clone(), h.clone());
+                if let Some((other, first)) = claims.get(&key) {
                     if other != &c.name {
+                        let on = if machine.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" on machine {machine:?}")
+                        };
                         problems.push(Problem {
                             origin: origin.clone(),
                             message: format!(
-                                "hardware {h:?} is claimed by both {other:?} ({first}) and {:?}",
+                                "hardware {h:?}{on} is claimed by both {other:?} ({first}) and {:?}",
                                 c.name
                             ),
                         });
                     }
                 } else {
-                    claims.insert(h.clone(), (c.name.clone(), origin.clone()));
+                    claims.insert(key, (c.name.clone(), origin.clone()));
                 }
             }
         }
+        problems.extend(check_machines(&machines, certs.as_deref(), insecure_bus));
 
         let manifest = Manifest {
             name: name.unwrap_or_else(|| {
@@ -568,6 +670,9 @@ impl Manifest {
             vars,
             components,
             file: top,
+            machines: machines.into_values().collect(),
+            certs,
+            insecure_bus,
         };
         if let Err(cycle) = manifest.start_order() {
             problems.push(cycle);
@@ -636,6 +741,70 @@ impl Manifest {
     pub fn component(&self, name: &str) -> Option<&Component> {
         self.components.iter().find(|c| c.name == name)
     }
+}
+
+/// The machines' own problems: a name that cannot be a key segment, a router endpoint that is
+/// not tcp/ or tls/ with a port, a router that leaves the host in plain tcp/ (unless the graph
+/// says `insecure_bus`), TLS without a certificate folder.
+fn check_machines(
+    machines: &BTreeMap<String, Machine>,
+    certs: Option<&Path>,
+    insecure_bus: bool,
+) -> Vec<Problem> {
+    let mut problems = Vec::new();
+    for m in machines.values() {
+        let mut say = |message: String| {
+            problems.push(Problem {
+                origin: m.origin.clone(),
+                message,
+            })
+        };
+        if !interfaces::topics::is_valid_machine(&m.name) {
+            say(format!(
+                "machine name {:?}: use lowercase letters, digits, '_', '-'",
+                m.name
+            ));
+        }
+        let Some((proto, addr)) = m.router.split_once('/') else {
+            say(format!(
+                "machine {:?}: router {:?} is not an endpoint like tls/10.0.0.2:7447",
+                m.name, m.router
+            ));
+            continue;
+        };
+        if !matches!(proto, "tcp" | "tls") {
+            say(format!(
+                "machine {:?}: router {:?}: the routers join over tls/ (or tcp/ with insecure_bus), not {proto}/",
+                m.name, m.router
+            ));
+            continue;
+        }
+        let port_ok = addr
+            .rsplit_once(':')
+            .and_then(|(_, p)| p.parse::<u16>().ok())
+            .is_some_and(|p| p != 0);
+        if !port_ok {
+            say(format!(
+                "machine {:?}: router {:?} needs a fixed port (the other machines dial it)",
+                m.name, m.router
+            ));
+        }
+        let loopback =
+            addr.starts_with("127.") || addr.starts_with("[::1]") || addr.starts_with("localhost:");
+        if proto == "tcp" && !loopback && !insecure_bus {
+            say(format!(
+                "machine {:?}: router {:?} would carry the bus off this host unencrypted and open to anyone; use tls/ with [graph] certs (robocog certs makes them), or set insecure_bus = true in [graph]",
+                m.name, m.router
+            ));
+        }
+        if proto == "tls" && certs.is_none() {
+            say(format!(
+                "machine {:?}: router {:?} is TLS, but [graph] names no certs folder",
+                m.name, m.router
+            ));
+        }
+    }
+    problems
 }
 
 impl Component {

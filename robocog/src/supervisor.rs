@@ -31,6 +31,38 @@ use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::Command;
 use tokio::sync::{mpsc, watch};
 
+use crate::agent::{AGENT_PREFIX, LAUNCHER_NAME};
+use interfaces::bus::Bus;
+use interfaces::msg::agent::{
+    AgentAction, AgentChild, AgentEvent, AgentEventKind, AgentRequest, EnvVar,
+};
+use std::os::unix::process::ExitStatusExt;
+
+/// The machines of a graph over several, as the launcher sees them.
+struct Machines {
+    bus: Bus,
+    launch_id: String,
+    graph: String,
+    /// Agents on the bus now.
+    up: std::collections::BTreeSet<String>,
+    /// Agents that have been up at least once (a lost one is then "back" when it returns).
+    seen: std::collections::BTreeSet<String>,
+    since: Instant,
+    timeout: Duration,
+}
+
+/// The request every call to an agent starts from.
+fn agent_request(m: &Machines, action: AgentAction, c: &Child) -> AgentRequest {
+    AgentRequest {
+        launch_id: m.launch_id.clone(),
+        graph: m.graph.clone(),
+        action,
+        component: c.spec.name.clone(),
+        generation: c.generation,
+        ..Default::default()
+    }
+}
+
 /// How `launch` runs.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
@@ -43,6 +75,10 @@ pub struct LaunchOptions {
     pub state_dir: std::path::PathBuf,
     /// Keep what an earlier launch left in `state_dir` (else it is moved aside).
     pub resume: bool,
+    /// The machine the launcher runs on, for a graph over several machines.
+    pub machine: Option<String>,
+    /// How long a launch waits for the agents of the other machines.
+    pub machine_timeout: Duration,
 }
 
 const PALETTE: [u8; 12] = [36, 32, 33, 35, 34, 31, 96, 92, 93, 95, 94, 91];
@@ -66,16 +102,41 @@ enum Event {
     Stop {
         reason: String,
     },
+    /// An agent answered a start (the pid) or refused it.
+    RemoteStarted {
+        name: String,
+        generation: u64,
+        result: Result<u32, String>,
+    },
+    /// Output or an exit from a component on another machine.
+    Remote(AgentEvent),
+    /// A machine's agent appeared on the bus.
+    MachineUp {
+        machine: String,
+    },
+    /// A machine's agent vanished from the bus (the machine dropped off, or its agent died).
+    MachineLost {
+        machine: String,
+    },
+    /// What a machine that came back still runs.
+    Reconciled {
+        machine: String,
+        running: Result<Vec<AgentChild>, String>,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum State {
     Pending,
-    Starting { deadline: Instant },
+    Starting {
+        deadline: Instant,
+    },
     Up,
     Backoff,
     Exited,
     Failed,
+    /// On a machine that dropped off: running there, as far as we know, and out of reach.
+    Unreachable,
 }
 
 struct Child {
@@ -89,6 +150,8 @@ struct Child {
     exit: Option<watch::Receiver<Option<Option<ExitStatus>>>>,
     tail: Arc<Mutex<VecDeque<String>>>,
     prefix: String,
+    /// The other machine it runs on; `None`: this one.
+    remote: Option<String>,
 }
 
 fn prefix(name: &str, width: usize, index: usize, color: bool) -> String {
@@ -144,8 +207,26 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         .map(|c| c.name.clone())
         .collect();
 
-    // The router every component joins.
-    let (router, endpoint) = interfaces::router::open_router(&opts.router).await?;
+    // The router every component of this machine joins (and, over several machines, the other
+    // machines' routers too).
+    let me = match (&opts.machine, manifest.machines.is_empty()) {
+        (_, true) => None,
+        (Some(name), false) => Some(crate::machines::machine(&manifest, name)?.clone()),
+        (None, false) => {
+            let known: Vec<&str> = manifest.machines.iter().map(|m| m.name.as_str()).collect();
+            anyhow::bail!(
+                "the graph {:?} runs on several machines ({}): say which one this is with --machine (or ROBOCOG_MACHINE)",
+                manifest.name,
+                known.join(", ")
+            );
+        }
+    };
+    let (router, endpoint) = match &me {
+        None => interfaces::router::open_router(&opts.router).await?,
+        Some(me) => {
+            crate::machines::open_router(&manifest, me, &opts.router, &opts.namespace).await?
+        }
+    };
     let connect = interfaces::ConnectArgs::to_router(&endpoint, &opts.namespace);
     say(format!(
         "graph {:?}: router {endpoint}, namespace {}, {} components",
@@ -163,6 +244,50 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
 
     let (tx, mut rx) = mpsc::channel::<Event>(1024);
 
+    // Over several machines: the launcher's own session, to call the agents and hear them.
+    let mut machines = match &me {
+        None => None,
+        Some(me) => {
+            let bus = Bus::open(&connect, LAUNCHER_NAME).await?;
+            let events = bus.subscriber(&interfaces::topics::AGENT_EVENTS).await?;
+            let launch_id = format!(
+                "{}-{}-{}",
+                bus.host(),
+                std::process::id(),
+                interfaces::header::system_now_ns() / 1_000_000
+            );
+            let tx = tx.clone();
+            tokio::spawn(async move {
+                while let Ok(e) = events.recv().await {
+                    if tx.send(Event::Remote(e)).await.is_err() {
+                        return;
+                    }
+                }
+            });
+            let others: Vec<String> = manifest
+                .machines
+                .iter()
+                .filter(|m| m.name != me.name)
+                .map(|m| format!("{} ({})", m.name, m.router))
+                .collect();
+            say(format!(
+                "this is machine {:?} ({}); the other machines: {}; waiting for their agents",
+                me.name,
+                me.router,
+                others.join(", ")
+            ));
+            Some(Machines {
+                bus,
+                launch_id,
+                graph: manifest.name.clone(),
+                up: Default::default(),
+                seen: Default::default(),
+                since: Instant::now(),
+                timeout: opts.machine_timeout,
+            })
+        }
+    };
+
     // Components are up when their liveliness token appears.
     let tokens = router
         .liveliness()
@@ -176,13 +301,23 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         let ns = opts.namespace.clone();
         tokio::spawn(async move {
             while let Ok(sample) = tokens.recv_async().await {
-                if sample.kind() != zenoh::sample::SampleKind::Put {
-                    continue;
-                }
-                if let Some(Token::Component { name, pid, .. }) =
+                let put = sample.kind() == zenoh::sample::SampleKind::Put;
+                let Some(Token::Component { name, pid, .. }) =
                     liveliness::parse(&ns, sample.key_expr().as_str())
-                    && tx.send(Event::Up { name, pid }).await.is_err()
-                {
+                else {
+                    continue;
+                };
+                let event = match name.strip_prefix(AGENT_PREFIX) {
+                    Some(machine) if put => Event::MachineUp {
+                        machine: machine.to_string(),
+                    },
+                    Some(machine) => Event::MachineLost {
+                        machine: machine.to_string(),
+                    },
+                    None if put => Event::Up { name, pid },
+                    None => continue,
+                };
+                if tx.send(event).await.is_err() {
                     return;
                 }
             }
@@ -211,18 +346,32 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         });
     }
 
+    // Over several machines, every line says where it comes from: `machine/component`.
+    let label = |c: &Component| match (&me, &c.machine) {
+        (None, _) => c.name.clone(),
+        (Some(me), None) => format!("{}/{}", me.name, c.name),
+        (Some(_), Some(m)) => format!("{m}/{}", c.name),
+    };
     let width = manifest
         .components
         .iter()
-        .map(|c| c.name.len())
+        .map(|c| label(c).len())
         .max()
         .unwrap_or(8)
         .max(7);
     let mut children: HashMap<String, Child> = HashMap::new();
     for (i, c) in manifest.components.iter().enumerate() {
-        let binary = c
-            .resolve_binary()
-            .ok_or_else(|| anyhow::anyhow!("{}: unknown binary {:?}", c.origin, c.binary))?;
+        let elsewhere = c
+            .machine
+            .as_ref()
+            .is_some_and(|m| me.as_ref().is_some_and(|me| &me.name != m));
+        // A component of another machine is found there, by its agent.
+        let binary = if elsewhere {
+            std::path::PathBuf::from(&c.binary)
+        } else {
+            c.resolve_binary()
+                .ok_or_else(|| anyhow::anyhow!("{}: unknown binary {:?}", c.origin, c.binary))?
+        };
         children.insert(
             c.name.clone(),
             Child {
@@ -235,7 +384,11 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                 started: Instant::now(),
                 exit: None,
                 tail: Arc::new(Mutex::new(VecDeque::new())),
-                prefix: prefix(&c.name, width, i, opts.color),
+                prefix: prefix(&label(c), width, i, opts.color),
+                remote: c
+                    .machine
+                    .clone()
+                    .filter(|m| me.as_ref().is_some_and(|me| &me.name != m)),
             },
         );
     }
@@ -252,11 +405,21 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                         .depends_on
                         .iter()
                         .all(|d| children.get(d).is_some_and(|d| d.state == State::Up))
+                    && c.remote
+                        .as_ref()
+                        .is_none_or(|m| machines.as_ref().is_some_and(|ms| ms.up.contains(m)))
             };
-            if ready
-                && let Some(c) = children.get_mut(name)
-                && let Err(e) = spawn(c, &connect, &opts.state_dir, &tx)
-            {
+            if !ready {
+                continue;
+            }
+            let Some(c) = children.get_mut(name) else {
+                continue;
+            };
+            if c.remote.is_some() {
+                if let Some(ms) = &machines {
+                    spawn_remote(c, ms, &tx);
+                }
+            } else if let Err(e) = spawn(c, &connect, &opts.state_dir, &tx) {
                 say(format!("cannot start {name}: {e:#}"));
                 exit_code = Some(1);
             }
@@ -271,9 +434,10 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         match event {
             Some(Event::Up { name, pid }) => {
                 if let Some(c) = children.get_mut(&name)
-                    && c.pid == Some(pid)
+                    && (c.pid == Some(pid) || (c.remote.is_some() && c.pid.is_none()))
                     && matches!(c.state, State::Starting { .. })
                 {
+                    c.pid = Some(pid);
                     c.state = State::Up;
                     say(format!(
                         "{name} is up (pid {pid}, {} ms)",
@@ -357,6 +521,13 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             Some(Event::RestartDue { name }) => {
                 if let Some(c) = children.get_mut(&name)
                     && c.state == State::Backoff
+                    && c.remote.is_some()
+                {
+                    if let Some(ms) = &machines {
+                        spawn_remote(c, ms, &tx);
+                    }
+                } else if let Some(c) = children.get_mut(&name)
+                    && c.state == State::Backoff
                     && let Err(e) = spawn(c, &connect, &opts.state_dir, &tx)
                 {
                     say(format!("cannot restart {name}: {e:#}"));
@@ -370,8 +541,205 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                 say(format!("{reason}: stopping the graph"));
                 exit_code = Some(0);
             }
+            Some(Event::RemoteStarted {
+                name,
+                generation,
+                result,
+            }) => {
+                let Some(c) = children.get_mut(&name) else {
+                    continue;
+                };
+                if c.generation != generation {
+                    continue;
+                }
+                match result {
+                    Ok(pid) => {
+                        say(format!(
+                            "started {} on machine {} (pid {pid}): {} {}",
+                            c.spec.name,
+                            c.remote.as_deref().unwrap_or("?"),
+                            c.spec.binary,
+                            c.spec.args.join(" ")
+                        ));
+                        if c.pid.is_none() {
+                            c.pid = Some(pid);
+                        }
+                    }
+                    Err(why) => {
+                        say(format!("cannot start {name}: {why}"));
+                        c.state = State::Failed;
+                        if c.spec.required {
+                            exit_code = Some(1);
+                        }
+                    }
+                }
+            }
+            Some(Event::Remote(e)) => {
+                let Some(ms) = &machines else { continue };
+                if e.launch_id != ms.launch_id {
+                    continue;
+                }
+                let Some(c) = children.get_mut(&e.component) else {
+                    continue;
+                };
+                match e.kind {
+                    AgentEventKind::Stdout => {
+                        println!("{} {}", c.prefix, e.line);
+                        push_tail(&c.tail, e.line);
+                    }
+                    AgentEventKind::Stderr => {
+                        eprintln!("{} {}", c.prefix, e.line);
+                        push_tail(&c.tail, e.line);
+                    }
+                    AgentEventKind::Exited => {
+                        let status =
+                            (e.wait_status >= 0).then(|| ExitStatus::from_raw(e.wait_status));
+                        let _ = tx
+                            .send(Event::Exited {
+                                name: e.component,
+                                generation: e.generation,
+                                status,
+                            })
+                            .await;
+                    }
+                }
+            }
+            Some(Event::MachineUp { machine }) => {
+                let Some(ms) = machines.as_mut() else {
+                    continue;
+                };
+                if !ms.up.insert(machine.clone()) {
+                    continue;
+                }
+                if ms.seen.insert(machine.clone()) {
+                    say(format!(
+                        "machine {machine}'s agent is up ({} ms)",
+                        ms.since.elapsed().as_millis()
+                    ));
+                } else {
+                    say(format!(
+                        "machine {machine} is back: asking its agent what still runs there"
+                    ));
+                    let bus = ms.bus.clone();
+                    let request = AgentRequest {
+                        launch_id: ms.launch_id.clone(),
+                        graph: ms.graph.clone(),
+                        action: AgentAction::Status,
+                        ..Default::default()
+                    };
+                    let tx = tx.clone();
+                    tokio::spawn(async move {
+                        let running = match interfaces::topics::agent_control(&machine) {
+                            Some(control) => bus
+                                .call(&control, &request, Duration::from_secs(5))
+                                .await
+                                .map(|r| r.running)
+                                .map_err(|e| e.to_string()),
+                            None => Err("invalid machine name".into()),
+                        };
+                        let _ = tx.send(Event::Reconciled { machine, running }).await;
+                    });
+                }
+            }
+            Some(Event::MachineLost { machine }) => {
+                let Some(ms) = machines.as_mut() else {
+                    continue;
+                };
+                if !ms.up.remove(&machine) {
+                    continue;
+                }
+                let mut lost: Vec<&str> = Vec::new();
+                for c in children.values_mut() {
+                    if c.remote.as_deref() == Some(machine.as_str())
+                        && matches!(c.state, State::Up | State::Starting { .. } | State::Backoff)
+                    {
+                        c.state = State::Unreachable;
+                        lost.push(&c.spec.name);
+                    }
+                }
+                lost.sort();
+                say(format!(
+                    "machine {machine} is out of reach (its agent left the bus: the machine or its link is down); its components {} are out of reach too: they run on there if the machine does, and are taken up again when it is back",
+                    if lost.is_empty() {
+                        "(none running)".to_string()
+                    } else {
+                        lost.join(", ")
+                    }
+                ));
+            }
+            Some(Event::Reconciled { machine, running }) => {
+                let running = match running {
+                    Ok(r) => r,
+                    Err(why) => {
+                        say(format!(
+                            "machine {machine}'s agent did not say what runs there ({why}); its components count as stopped"
+                        ));
+                        Vec::new()
+                    }
+                };
+                let mut names: Vec<String> = Vec::new();
+                for c in children.values_mut() {
+                    if c.remote.as_deref() != Some(machine.as_str())
+                        || c.state != State::Unreachable
+                    {
+                        continue;
+                    }
+                    match running
+                        .iter()
+                        .find(|r| r.component == c.spec.name && r.generation == c.generation)
+                    {
+                        Some(r) => {
+                            c.state = State::Up;
+                            c.pid = Some(r.pid);
+                            names.push(c.spec.name.clone());
+                        }
+                        None => {
+                            // It stopped while the machine was away: its policy decides.
+                            c.state = State::Starting {
+                                deadline: Instant::now() + c.spec.ready_timeout,
+                            };
+                            let _ = tx
+                                .send(Event::Exited {
+                                    name: c.spec.name.clone(),
+                                    generation: c.generation,
+                                    status: None,
+                                })
+                                .await;
+                        }
+                    }
+                }
+                names.sort();
+                say(format!(
+                    "machine {machine}: {} ran on while it was away",
+                    if names.is_empty() {
+                        "nothing".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ));
+            }
             None => {
                 let now = Instant::now();
+                if let Some(ms) = &machines
+                    && ms.since.elapsed() > ms.timeout
+                {
+                    let mut missing: Vec<&str> = children
+                        .values()
+                        .filter(|c| c.state == State::Pending)
+                        .filter_map(|c| c.remote.as_deref())
+                        .filter(|m| !ms.seen.contains(*m))
+                        .collect();
+                    missing.sort();
+                    missing.dedup();
+                    if !missing.is_empty() {
+                        say(format!(
+                            "no agent on machine {} within {:.0} s: is `robocog agent --machine <name> <manifest>` running there, and can its router reach this one (the [machines] endpoints, certificates, firewall)?",
+                            missing.join(", "),
+                            ms.timeout.as_secs_f64()
+                        ));
+                        exit_code = Some(1);
+                    }
+                }
                 for c in children.values_mut() {
                     if let State::Starting { deadline } = c.state
                         && now > deadline
@@ -393,7 +761,8 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         }
     }
 
-    stop_all(&manifest, &mut children).await;
+    stop_all(&manifest, &mut children, machines.as_ref()).await;
+    drop(machines);
     drop(router);
     let code = exit_code.unwrap_or(0);
     if code == 0 {
@@ -461,7 +830,7 @@ fn last_lines(c: &Child) -> String {
 
 /// Ask the kernel to SIGKILL the child when the launcher dies, whatever the reason.
 #[allow(unsafe_code)]
-fn die_with_parent(cmd: &mut Command) {
+pub(crate) fn die_with_parent(cmd: &mut Command) {
     // SAFETY: the closure runs in the forked child before exec and only calls prctl(2), which is
     // async-signal-safe, and getppid(2).
     unsafe {
@@ -476,18 +845,29 @@ fn die_with_parent(cmd: &mut Command) {
     }
 }
 
-fn spawn(
-    c: &mut Child,
-    connect: &interfaces::ConnectArgs,
-    state_dir: &std::path::Path,
-    tx: &mpsc::Sender<Event>,
-) -> anyhow::Result<()> {
-    let mut cmd = Command::new(&c.binary);
-    cmd.args(&c.spec.args)
-        .envs(connect.to_env())
-        .env("ROBOCOG_COMPONENT", &c.spec.name)
-        .env("ROBOCOG_STATE_DIR", state_dir.join(&c.spec.name))
-        .envs(&c.spec.env)
+/// What a process's exit runs.
+pub(crate) type BoxFuture = std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>>;
+
+/// A process started by [`spawn_process`].
+pub(crate) struct Spawned {
+    pub pid: u32,
+    /// Becomes `Some(status)` when it has exited (`None` inside: its status is unknown).
+    pub exit: watch::Receiver<Option<Option<ExitStatus>>>,
+}
+
+/// Start `binary` as a component process: its own process group, killed with its parent, stdin
+/// closed, every line it writes handed to `on_line` (with whether it came on stderr), and
+/// `on_exit` called with its status once it has exited.
+pub(crate) fn spawn_process(
+    binary: &std::path::Path,
+    args: &[String],
+    env: Vec<(String, String)>,
+    on_line: impl Fn(String, bool) + Send + Sync + 'static,
+    on_exit: impl FnOnce(Option<ExitStatus>) -> BoxFuture + Send + 'static,
+) -> anyhow::Result<Spawned> {
+    let mut cmd = Command::new(binary);
+    cmd.args(args)
+        .envs(env)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -496,21 +876,9 @@ fn spawn(
     die_with_parent(&mut cmd);
     let mut child = cmd
         .spawn()
-        .map_err(|e| anyhow::anyhow!("cannot run {}: {e}", c.binary.display()))?;
+        .map_err(|e| anyhow::anyhow!("cannot run {}: {e}", binary.display()))?;
     let pid = child.id().unwrap_or(0);
-    c.generation += 1;
-    c.pid = Some(pid);
-    c.started = Instant::now();
-    c.state = State::Starting {
-        deadline: Instant::now() + c.spec.ready_timeout,
-    };
-    say(format!(
-        "started {} (pid {pid}): {} {}",
-        c.spec.name,
-        c.binary.display(),
-        c.spec.args.join(" ")
-    ));
-
+    let on_line = Arc::new(on_line);
     for (stream, to_stderr) in [
         (
             child
@@ -528,48 +896,142 @@ fn spawn(
         ),
     ] {
         let Some(stream) = stream else { continue };
-        let prefix = c.prefix.clone();
-        let tail = c.tail.clone();
+        let on_line = on_line.clone();
         tokio::spawn(async move {
             let mut lines = BufReader::new(stream).split(b'\n');
             while let Ok(Some(line)) = lines.next_segment().await {
-                let line = String::from_utf8_lossy(&line).trim_end().to_string();
-                if to_stderr {
-                    eprintln!("{prefix} {line}");
-                } else {
-                    println!("{prefix} {line}");
-                }
-                let mut t = tail.lock().unwrap_or_else(|p| p.into_inner());
-                if t.len() == TAIL_LINES {
-                    t.pop_front();
-                }
-                t.push_back(line);
+                on_line(
+                    String::from_utf8_lossy(&line).trim_end().to_string(),
+                    to_stderr,
+                );
             }
         });
     }
-
     let (exit_tx, exit_rx) = watch::channel(None);
-    c.exit = Some(exit_rx);
+    tokio::spawn(async move {
+        let status = child.wait().await.ok();
+        let _ = exit_tx.send(Some(status));
+        on_exit(status).await;
+    });
+    Ok(Spawned { pid, exit: exit_rx })
+}
+
+fn spawn(
+    c: &mut Child,
+    connect: &interfaces::ConnectArgs,
+    state_dir: &std::path::Path,
+    tx: &mpsc::Sender<Event>,
+) -> anyhow::Result<()> {
+    let mut env = connect.to_env();
+    env.push(("ROBOCOG_COMPONENT".into(), c.spec.name.clone()));
+    env.push((
+        "ROBOCOG_STATE_DIR".into(),
+        state_dir.join(&c.spec.name).display().to_string(),
+    ));
+    env.extend(c.spec.env.iter().map(|(k, v)| (k.clone(), v.clone())));
+    let prefix = c.prefix.clone();
+    let tail = c.tail.clone();
+    let on_line = move |line: String, to_stderr: bool| {
+        if to_stderr {
+            eprintln!("{prefix} {line}");
+        } else {
+            println!("{prefix} {line}");
+        }
+        push_tail(&tail, line);
+    };
+    let tx = tx.clone();
+    let name = c.spec.name.clone();
+    let generation = c.generation + 1;
+    let on_exit = move |status: Option<ExitStatus>| -> BoxFuture {
+        Box::pin(async move {
+            let _ = tx
+                .send(Event::Exited {
+                    name,
+                    generation,
+                    status,
+                })
+                .await;
+        })
+    };
+    let spawned = spawn_process(&c.binary, &c.spec.args, env, on_line, on_exit)?;
+    let pid = spawned.pid;
+    c.generation = generation;
+    c.pid = Some(pid);
+    c.started = Instant::now();
+    c.state = State::Starting {
+        deadline: Instant::now() + c.spec.ready_timeout,
+    };
+    c.exit = Some(spawned.exit);
+    say(format!(
+        "started {} (pid {pid}): {} {}",
+        c.spec.name,
+        c.binary.display(),
+        c.spec.args.join(" ")
+    ));
+    Ok(())
+}
+
+/// Ask `c`'s machine's agent to start it; the answer comes back as [`Event::RemoteStarted`].
+fn spawn_remote(c: &mut Child, ms: &Machines, tx: &mpsc::Sender<Event>) {
+    c.generation += 1;
+    c.pid = None;
+    c.started = Instant::now();
+    c.state = State::Starting {
+        deadline: Instant::now() + c.spec.ready_timeout,
+    };
+    let machine = c.remote.clone().unwrap_or_default();
+    let mut request = agent_request(ms, AgentAction::Start, c);
+    request.binary = c.spec.binary.clone();
+    request.dir = c.spec.dir.display().to_string();
+    request.args = c.spec.args.clone();
+    request.env = c
+        .spec
+        .env
+        .iter()
+        .map(|(k, v)| EnvVar {
+            name: k.clone(),
+            value: v.clone(),
+        })
+        .collect();
+    let bus = ms.bus.clone();
     let tx = tx.clone();
     let name = c.spec.name.clone();
     let generation = c.generation;
     tokio::spawn(async move {
-        let status = child.wait().await.ok();
-        let _ = exit_tx.send(Some(status));
+        let result = match interfaces::topics::agent_control(&machine) {
+            Some(control) => bus
+                .call(&control, &request, Duration::from_secs(10))
+                .await
+                .map(|r| r.pid)
+                .map_err(|e| format!("machine {machine}'s agent: {e}")),
+            None => Err(format!("invalid machine name {machine:?}")),
+        };
         let _ = tx
-            .send(Event::Exited {
+            .send(Event::RemoteStarted {
                 name,
                 generation,
-                status,
+                result,
             })
             .await;
     });
-    Ok(())
+}
+
+/// Keep `line` among the last lines of a component (shown when it fails).
+pub(crate) fn push_tail(tail: &Mutex<VecDeque<String>>, line: String) {
+    let mut t = tail.lock().unwrap_or_else(|p| p.into_inner());
+    if t.len() == TAIL_LINES {
+        t.pop_front();
+    }
+    t.push_back(line);
 }
 
 /// Stop every running child, dependents before their dependencies: SIGTERM to its process group,
 /// then SIGKILL after its stop time-out. Finally SIGKILL every group, so nothing is left behind.
-async fn stop_all(manifest: &Manifest, children: &mut HashMap<String, Child>) {
+async fn stop_all(
+    manifest: &Manifest,
+    children: &mut HashMap<String, Child>,
+    machines: Option<&Machines>,
+) {
     // Depth in the dependency graph: leaves (no dependents) stop first.
     let mut depth: HashMap<String, usize> = HashMap::new();
     if let Ok(order) = manifest.start_order() {
@@ -587,8 +1049,37 @@ async fn stop_all(manifest: &Manifest, children: &mut HashMap<String, Child>) {
     let mut groups = Vec::new();
     for level in (0..=max_depth).rev() {
         let mut waiting = Vec::new();
+        let mut remote: Vec<BoxFuture> = Vec::new();
         for c in children.values_mut() {
             if depth.get(&c.spec.name).copied().unwrap_or(0) != level {
+                continue;
+            }
+            if let Some(machine) = c.remote.clone() {
+                // On another machine: its agent stops it (and says so when it has exited).
+                let running = c.pid.take().is_some()
+                    || matches!(c.state, State::Starting { .. } | State::Unreachable);
+                if let (true, Some(ms)) = (running, machines) {
+                    let mut request = agent_request(ms, AgentAction::Stop, c);
+                    request.stop_timeout_ms = c.spec.stop_timeout.as_millis() as u64;
+                    let wait = c.spec.stop_timeout + Duration::from_secs(6);
+                    let bus = ms.bus.clone();
+                    let name = c.spec.name.clone();
+                    let reachable = ms.up.contains(&machine);
+                    remote.push(Box::pin(async move {
+                        if !reachable {
+                            say(format!(
+                                "cannot stop {name}: machine {machine} is out of reach (its agent stops it once the launcher has been gone a while)"
+                            ));
+                            return;
+                        }
+                        let Some(control) = interfaces::topics::agent_control(&machine) else {
+                            return;
+                        };
+                        if let Err(e) = bus.call(&control, &request, wait).await {
+                            say(format!("cannot stop {name} on machine {machine}: {e}"));
+                        }
+                    }));
+                }
                 continue;
             }
             if let Some(pid) = c.pid.take() {
@@ -622,7 +1113,11 @@ async fn stop_all(manifest: &Manifest, children: &mut HashMap<String, Child>) {
                     .await;
                 }
             });
+        let remote = remote.into_iter().map(tokio::spawn).collect::<Vec<_>>();
         futures_join_all(waits).await;
+        for r in remote {
+            let _ = r.await;
+        }
     }
     // Anything a component left in its group goes too.
     for pid in groups {

@@ -2,6 +2,8 @@
 //! Helpers for the process-and-bus tests: find the built binaries, give every test a fresh
 //! namespace and a router on a free port, and wait for things with a time-out, always.
 
+pub mod netns;
+
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -370,6 +372,14 @@ pub fn free_udp_port() -> u16 {
         .and_then(|s| s.local_addr())
         .map(|a| a.port())
         .expect("a free UDP port on loopback")
+}
+
+/// A TCP port free on loopback now.
+pub fn free_tcp_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .map(|a| a.port())
+        .expect("a free TCP port on loopback")
 }
 
 /// Wait until `f` returns `Some`, polling, at most `timeout`.

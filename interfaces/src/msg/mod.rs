@@ -10,6 +10,7 @@
 //! Every type is listed once in the `messages!` invocation below, which gives it its type name and
 //! puts it in [`REGISTRY`].
 
+pub mod agent;
 pub mod body;
 pub mod command;
 pub mod diag;
@@ -144,6 +145,9 @@ messages! {
     std_msgs::Counter64 => "robocog.Counter64",
     std_msgs::ClockTime => "robocog.ClockTime",
     diag::Diagnostics => "robocog.Diagnostics",
+    agent::AgentRequest => "robocog.agent.Request",
+    agent::AgentReply => "robocog.agent.Reply",
+    agent::AgentEvent => "robocog.agent.Event",
     vision::RgbdFrame => "robocog.RgbdFrame",
     vision::CameraStatus => "robocog.CameraStatus",
     tracking::BallTarget => "robocog.BallTarget",

@@ -31,6 +31,13 @@ pub struct Args {
     /// what an earlier launch left is moved aside to `<namespace>.previous`.
     #[arg(long)]
     pub resume: bool,
+    /// For a graph over several machines ([machines] in the manifest): which one this is. The
+    /// components placed on the others are started there by their agents (`robocog agent`).
+    #[arg(long, env = "ROBOCOG_MACHINE")]
+    pub machine: Option<String>,
+    /// How long to wait for the other machines' agents (seconds).
+    #[arg(long, default_value_t = 30.0)]
+    pub machine_timeout_s: f64,
 }
 
 /// A graph's name as one folder name.
@@ -49,7 +56,7 @@ fn path_segment(name: &str) -> String {
 }
 
 /// The default root of the components' state folders.
-fn default_state_root() -> PathBuf {
+pub(crate) fn default_state_root() -> PathBuf {
     std::env::var_os("XDG_STATE_HOME")
         .filter(|v| !v.is_empty())
         .map(PathBuf::from)
@@ -108,6 +115,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             color,
             state_dir,
             resume: args.resume,
+            machine: args.machine,
+            machine_timeout: std::time::Duration::from_secs_f64(
+                args.machine_timeout_s.clamp(1.0, 3600.0),
+            ),
         },
     )
     .await

@@ -9,6 +9,8 @@ macro_rules! out {
     };
 }
 
+pub mod agent;
+pub mod certs;
 pub mod check;
 pub mod component;
 pub mod launch;

@@ -1,0 +1,247 @@
+//! The routers of a graph over several machines.
+//!
+//! Every machine of a graph hosts one router (the launcher's machine in `robocog launch`, every
+//! other one in `robocog agent`). It listens twice:
+//!
+//! - on loopback (`tcp/127.0.0.1:<port>`), plain: the machine's own components join there, as
+//!   they do on a graph of one machine;
+//! - on the machine's `router` endpoint of the manifest (`tls/10.0.0.2:7447`), where the other
+//!   machines' routers join it. Each router also dials every other machine's endpoint (zenoh
+//!   keeps one link per pair and redials a lost one), so any machine can come first, and a
+//!   machine that comes back rejoins by itself. No multicast, no gossip: explicit endpoints.
+//!
+//! With TLS (`tls/` endpoints and the graph's `certs` folder) the links between machines are
+//! mutual TLS: both sides show a certificate signed by the graph's CA (`ca.pem`), each machine
+//! its own (`<machine>.pem`, `<machine>.key`, common name = the machine's name), and the name of
+//! the endpoint dialled must be in the certificate. On top, zenoh's access control lets through
+//! only what comes from loopback or from a link whose certificate names one of the graph's
+//! machines, and only on the graph's keys (`robocog/<namespace>/**`): a host with no
+//! certificate cannot open a link, and one with a certificate of this CA but not of this graph
+//! can neither publish nor subscribe.
+//!
+//! A lost machine is noticed in 3 s (the links' lease), not zenoh's default 10 s: its tokens go,
+//! and the launcher and the games hear of it.
+
+use crate::manifest::{Machine, Manifest};
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
+
+/// How long a link between routers may stay silent before its far end counts as gone.
+pub const LINK_LEASE_MS: u64 = 3000;
+
+/// The certificate files of one machine in a graph's `certs` folder.
+#[derive(Debug, Clone)]
+pub struct MachineCerts {
+    pub ca: PathBuf,
+    pub cert: PathBuf,
+    pub key: PathBuf,
+}
+
+impl MachineCerts {
+    pub fn in_folder(folder: &Path, machine: &str) -> Self {
+        Self {
+            ca: folder.join("ca.pem"),
+            cert: folder.join(format!("{machine}.pem")),
+            key: folder.join(format!("{machine}.key")),
+        }
+    }
+
+    /// Every file there, or an error naming the missing ones and how to make them.
+    pub fn check(&self, machine: &str) -> anyhow::Result<()> {
+        let missing: Vec<String> = [&self.ca, &self.cert, &self.key]
+            .into_iter()
+            .filter(|p| !p.is_file())
+            .map(|p| p.display().to_string())
+            .collect();
+        if !missing.is_empty() {
+            bail!(
+                "machine {machine:?} has no certificate: missing {} (robocog certs <manifest> makes the graph's CA and one certificate per machine)",
+                missing.join(", ")
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The machine `name` of `manifest`, or an error listing those there are.
+pub fn machine<'m>(manifest: &'m Manifest, name: &str) -> anyhow::Result<&'m Machine> {
+    manifest
+        .machines
+        .iter()
+        .find(|m| m.name == name)
+        .with_context(|| {
+            let known: Vec<&str> = manifest.machines.iter().map(|m| m.name.as_str()).collect();
+            format!(
+                "the graph {:?} has no machine {name:?} (machines: {})",
+                manifest.name,
+                known.join(", ")
+            )
+        })
+}
+
+/// The zenoh configuration of machine `me`'s router: loopback at `local_listen`, the machine's
+/// endpoint for the others, a dial to every other machine, TLS and access control when the
+/// graph has certificates.
+pub fn router_config(
+    manifest: &Manifest,
+    me: &Machine,
+    local_listen: &str,
+    namespace: &str,
+) -> anyhow::Result<zenoh::Config> {
+    let mut config = zenoh::Config::default();
+    let mut set = |key: &str, value: String| -> anyhow::Result<()> {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| anyhow::anyhow!("router configuration {key}: {e}"))
+    };
+    let others: Vec<&str> = manifest
+        .machines
+        .iter()
+        .filter(|m| m.name != me.name)
+        .map(|m| m.router.as_str())
+        .collect();
+    set("mode", "\"router\"".into())?;
+    set("scouting/multicast/enabled", "false".into())?;
+    set("scouting/gossip/enabled", "false".into())?;
+    set(
+        "listen/endpoints",
+        serde_json::to_string(&[local_listen, me.router.as_str()])?,
+    )?;
+    set("connect/endpoints", serde_json::to_string(&others)?)?;
+    set("transport/link/tx/lease", LINK_LEASE_MS.to_string())?;
+    if me.is_tls() {
+        let folder = manifest
+            .certs
+            .as_deref()
+            .context("TLS between machines needs [graph] certs")?;
+        let certs = MachineCerts::in_folder(folder, &me.name);
+        certs.check(&me.name)?;
+        let path = |p: &Path| serde_json::to_string(&p.display().to_string());
+        set("transport/link/tls/root_ca_certificate", path(&certs.ca)?)?;
+        set("transport/link/tls/listen_certificate", path(&certs.cert)?)?;
+        set("transport/link/tls/listen_private_key", path(&certs.key)?)?;
+        set("transport/link/tls/connect_certificate", path(&certs.cert)?)?;
+        set("transport/link/tls/connect_private_key", path(&certs.key)?)?;
+        set("transport/link/tls/enable_mtls", "true".into())?;
+        set("transport/link/tls/verify_name_on_connect", "true".into())?;
+        set("access_control", access_control(manifest, namespace))?;
+    }
+    Ok(config)
+}
+
+/// zenoh's access control for a graph: everything on the graph's keys from loopback and from
+/// the graph's machines (by their certificates' common names), nothing else.
+fn access_control(manifest: &Manifest, namespace: &str) -> String {
+    let names: Vec<&str> = manifest.machines.iter().map(|m| m.name.as_str()).collect();
+    serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": [{
+            "id": "graph",
+            "permission": "allow",
+            "flows": ["ingress", "egress"],
+            "messages": [
+                "put", "delete", "declare_subscriber", "query", "reply",
+                "declare_queryable", "liveliness_token", "declare_liveliness_subscriber",
+                "liveliness_query"
+            ],
+            "key_exprs": [format!("robocog/{namespace}/**")],
+        }],
+        "subjects": [
+            { "id": "this machine", "interfaces": ["lo"] },
+            { "id": "the graph's machines", "cert_common_names": names },
+        ],
+        "policies": [{
+            "rules": ["graph"],
+            "subjects": ["this machine", "the graph's machines"],
+        }],
+    })
+    .to_string()
+}
+
+/// Open machine `me`'s router. Returns the session and its loopback endpoint (for the machine's
+/// components).
+pub async fn open_router(
+    manifest: &Manifest,
+    me: &Machine,
+    local_listen: &str,
+    namespace: &str,
+) -> anyhow::Result<(zenoh::Session, String)> {
+    let config = router_config(manifest, me, local_listen, namespace)?;
+    let session = zenoh::open(config).await.map_err(|e| {
+        anyhow::anyhow!(
+            "cannot start machine {:?}'s router on {local_listen} and {}: {e}",
+            me.name,
+            me.router
+        )
+    })?;
+    let endpoint = session
+        .info()
+        .locators()
+        .await
+        .into_iter()
+        .map(|l| l.to_string())
+        .find(|l| l.starts_with("tcp/127.") || l.starts_with("tcp/[::1]"))
+        .with_context(|| format!("the router on {local_listen} has no loopback endpoint"))?;
+    Ok((session, endpoint))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::manifest::Overrides;
+
+    fn manifest(dir: &Path, text: &str) -> Manifest {
+        let p = dir.join("g.toml");
+        std::fs::write(&p, text).unwrap();
+        Manifest::load(&p, &Overrides::default()).unwrap()
+    }
+
+    #[test]
+    fn a_tls_router_listens_on_loopback_and_its_endpoint_and_dials_the_others() {
+        let dir = std::env::temp_dir().join(format!("robocog-machines-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let m = manifest(
+            &dir,
+            r#"
+[graph]
+certs = "certs"
+[machines.robot]
+router = "tls/10.1.0.1:7447"
+[machines.speech]
+router = "tls/10.1.0.2:7447"
+[[component]]
+name = "a"
+binary = "true"
+machine = "speech"
+"#,
+        );
+        let me = machine(&m, "robot").unwrap();
+        // No certificates yet: the error says what is missing and how to make it.
+        let e = router_config(&m, me, "tcp/127.0.0.1:0", "ns")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("robot.pem") && e.contains("robocog certs"),
+            "{e}"
+        );
+        let certs = dir.join("certs");
+        std::fs::create_dir_all(&certs).unwrap();
+        for f in ["ca.pem", "robot.pem", "robot.key"] {
+            std::fs::write(certs.join(f), "x").unwrap();
+        }
+        let c = router_config(&m, me, "tcp/127.0.0.1:0", "ns").unwrap();
+        let get = |k: &str| c.get_json(k).unwrap();
+        assert_eq!(
+            get("listen/endpoints"),
+            r#"["tcp/127.0.0.1:0","tls/10.1.0.1:7447"]"#
+        );
+        assert_eq!(get("connect/endpoints"), r#"["tls/10.1.0.2:7447"]"#);
+        assert_eq!(get("transport/link/tls/enable_mtls"), "true");
+        assert!(get("access_control").contains("robocog/ns/**"));
+        assert!(get("access_control").contains("speech"));
+        let e = machine(&m, "field").unwrap_err().to_string();
+        assert!(e.contains("robot, speech"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

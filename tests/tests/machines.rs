@@ -1,0 +1,383 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: a panic is how a test fails
+//! One graph over several machines: network namespaces joined by veth pairs stand for the
+//! machines (root needed, as in CI), each with its own network stack, loopback and ports.
+//! `robocog launch` runs on one machine, `robocog agent` on each other; the routers join over
+//! mutual TLS with access control.
+
+use robocog_tests::netns::{Net, Proc};
+use robocog_tests::{bin, run, scratch, unique_namespace};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+const PORT: u16 = 7450;
+
+/// A graph whose machines are `names`, machine `i` at `net`'s address `i`, with `components`.
+fn write_graph(dir: &Path, net_ips: &[String], names: &[&str], components: &str) -> PathBuf {
+    let mut text = String::from("[graph]\nname = \"split\"\ncerts = \"certs\"\n\n");
+    for (name, ip) in names.iter().zip(net_ips) {
+        text.push_str(&format!(
+            "[machines.{name}]\nrouter = \"tls/{ip}:{PORT}\"\n\n"
+        ));
+    }
+    text.push_str(components);
+    let p = dir.join("graph.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn certs(manifest: &Path) {
+    let out = run(
+        &bin("robocog"),
+        &["certs".into(), manifest.display().to_string()],
+        Duration::from_secs(30),
+    );
+    assert!(
+        out.status.success(),
+        "robocog certs: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn agent(net: &Net, i: usize, machine: &str, manifest: &Path, ns: &str) -> Proc {
+    let p = net.spawn(
+        i,
+        &bin("robocog"),
+        &[
+            "agent".into(),
+            manifest.display().to_string(),
+            "--machine".into(),
+            machine.into(),
+            "--namespace".into(),
+            ns.into(),
+            "--router".into(),
+            "tcp/127.0.0.1:0".into(),
+            "--state-root".into(),
+            scratch(ns)
+                .join(format!("state-{machine}"))
+                .display()
+                .to_string(),
+        ],
+    );
+    p.lines
+        .wait_for("the agent ready", Duration::from_secs(20), |l| {
+            l.contains("ready: waiting for a launch") || l.starts_with("error")
+        });
+    p
+}
+
+fn launch(net: &Net, i: usize, machine: &str, manifest: &Path, ns: &str, extra: &[&str]) -> Proc {
+    let mut args: Vec<String> = [
+        "launch",
+        &manifest.display().to_string(),
+        "--machine",
+        machine,
+        "--namespace",
+        ns,
+        "--router",
+        "tcp/127.0.0.1:0",
+        "--color",
+        "never",
+        "--state-root",
+        &scratch(ns)
+            .join(format!("state-{machine}"))
+            .display()
+            .to_string(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    args.extend(extra.iter().map(|s| s.to_string()));
+    net.spawn(i, &bin("robocog"), &args)
+}
+
+/// The highest "hello N" the listener printed.
+fn last_hello(p: &Proc) -> u64 {
+    p.lines
+        .all()
+        .iter()
+        .filter(|l| l.contains("robot/listener |"))
+        .filter_map(|l| l.split("received: hello ").nth(1))
+        .filter_map(|s| s.split_whitespace().next()?.parse().ok())
+        .max()
+        .unwrap_or(0)
+}
+
+const TALK: &str = r#"
+[[component]]
+name = "talker"
+binary = "fixture_node"
+args = ["--role", "talker", "--rate", "10"]
+machine = "speech"
+
+[[component]]
+name = "listener"
+binary = "fixture_node"
+args = ["--role", "listener"]
+depends_on = ["talker"]
+machine = "robot"
+"#;
+
+#[test]
+fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off() {
+    let ns = unique_namespace("machines");
+    let net = Net::new(2);
+    let dir = scratch(&ns);
+    let manifest = write_graph(&dir, &[net.ip(0), net.ip(1)], &["robot", "speech"], TALK);
+    certs(&manifest);
+    let speech = agent(&net, 1, "speech", &manifest, &ns);
+    let mut robot = launch(&net, 0, "robot", &manifest, &ns, &[]);
+
+    // The talker runs on the other machine, started there by its agent, its lines here with
+    // their machine; the listener here hears it through the two routers.
+    robot.lines.wait_for(
+        "the listener hearing the talker",
+        Duration::from_secs(30),
+        |l| l.contains("robot/listener | received: hello 3"),
+    );
+    assert!(robot.lines.count(|l| l.starts_with(" speech/talker |")) > 0);
+    assert!(speech.lines.count(|l| l.contains("started talker (pid")) == 1);
+
+    // The speech machine's cable is pulled: noticed within the links' lease, and said.
+    net.link(1, false);
+    let pulled = Instant::now();
+    robot.lines.wait_for(
+        "the speech machine out of reach",
+        Duration::from_secs(15),
+        |l| l.contains("machine speech is out of reach") && l.contains("talker"),
+    );
+    let noticed = pulled.elapsed();
+    assert!(
+        noticed < Duration::from_secs(8),
+        "noticed after {noticed:?}"
+    );
+    let before = last_hello(&robot);
+
+    // Back: the routers rejoin by themselves, the talker ran on, and is heard again.
+    net.link(1, true);
+    robot
+        .lines
+        .wait_for("the speech machine back", Duration::from_secs(30), |l| {
+            l.contains("machine speech: talker ran on while it was away")
+        });
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while last_hello(&robot) <= before + 5 {
+        assert!(
+            Instant::now() < deadline,
+            "the listener did not hear the talker again (last hello {} before, {} now):\n{}",
+            before,
+            last_hello(&robot),
+            robot.lines.all().join("\n")
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(
+        robot.lines.count(|l| l.contains("restart")),
+        0,
+        "nothing was restarted:\n{}",
+        robot.lines.all().join("\n")
+    );
+    assert_eq!(speech.lines.count(|l| l.contains("started talker")), 1);
+
+    // Stopping the launch stops the other machine's components too; the agent stays for the
+    // next launch.
+    robot.sigterm();
+    let status = robot.wait_exit(Duration::from_secs(30));
+    assert!(status.success(), "{}", robot.lines.all().join("\n"));
+    speech.lines.wait_for(
+        "the talker stopped by its agent",
+        Duration::from_secs(5),
+        |l| l.contains("talker exited"),
+    );
+    assert!(speech.child.id() > 0 && robocog_tests::alive(speech.child.id()));
+}
+
+#[test]
+fn a_machine_without_the_graphs_certificate_cannot_publish_into_it() {
+    let ns = unique_namespace("intruder");
+    let net = Net::new(3);
+    let dir = scratch(&ns);
+    // The graph: the robot (listening) and the speech machine. A third host, the laptop, gets a
+    // certificate from the same CA but is no machine of the graph.
+    let listen_only = r#"
+[[component]]
+name = "listener"
+binary = "fixture_node"
+args = ["--role", "listener"]
+machine = "robot"
+external_inputs = ["chatter"]
+"#;
+    let manifest = write_graph(
+        &dir,
+        &[net.ip(0), net.ip(1)],
+        &["robot", "speech"],
+        listen_only,
+    );
+    certs(&manifest);
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let with_laptop = other.join("graph.toml");
+    std::fs::write(
+        &with_laptop,
+        std::fs::read_to_string(&manifest)
+            .unwrap()
+            .replace("certs = \"certs\"", "certs = \"../certs\"")
+            + &format!(
+                "\n[machines.laptop]\nrouter = \"tls/{}:{PORT}\"\n",
+                net.ip(2)
+            ),
+    )
+    .unwrap();
+    certs(&with_laptop);
+    // And a host with a CA of its own.
+    let foreign = dir.join("foreign");
+    std::fs::create_dir_all(&foreign).unwrap();
+    let foreign_manifest = foreign.join("graph.toml");
+    std::fs::write(
+        &foreign_manifest,
+        std::fs::read_to_string(&manifest).unwrap(),
+    )
+    .unwrap();
+    certs(&foreign_manifest);
+
+    let robot = launch(&net, 0, "robot", &manifest, &ns, &[]);
+    robot
+        .lines
+        .wait_for("the listener up", Duration::from_secs(20), |l| {
+            l.contains("listener is up")
+        });
+
+    // Publish from a host with a client configuration using `certs`'s files of `machine`.
+    let publish = |host: usize, certs: &Path, machine: &str, text: &str, tls: bool| {
+        let config = dir.join(format!("client-{text}.json5"));
+        let tls_conf = serde_json::json!({
+            "root_ca_certificate": certs.join("ca.pem"),
+            "connect_certificate": certs.join(format!("{machine}.pem")),
+            "connect_private_key": certs.join(format!("{machine}.key")),
+            "enable_mtls": true,
+        });
+        std::fs::write(
+            &config,
+            serde_json::json!({
+                "scouting": {"multicast": {"enabled": false}},
+                "transport": {"link": {"tls": tls_conf}},
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let proto = if tls { "tls" } else { "tcp" };
+        let mut p = net.spawn(
+            host,
+            &bin("robocog"),
+            &[
+                "topic".into(),
+                "pub".into(),
+                "chatter".into(),
+                format!(r#"{{"text": "{text}"}}"#),
+                "--type".into(),
+                "robocog.Text".into(),
+                "--count".into(),
+                "5".into(),
+                "--rate".into(),
+                "10".into(),
+                "--namespace".into(),
+                ns.clone(),
+                "--connect".into(),
+                format!("{proto}/{}:{PORT}", net.ip(0)),
+                "--config".into(),
+                config.display().to_string(),
+            ],
+        );
+        let status = p.wait_exit(Duration::from_secs(30));
+        (status, p.lines.all().join("\n"))
+    };
+
+    // The graph's own speech machine can (the control: the path works).
+    let (status, out) = publish(1, &dir.join("certs"), "speech", "from-speech", true);
+    assert!(status.success(), "{out}");
+    robot.lines.wait_for(
+        "the speech machine's message",
+        Duration::from_secs(10),
+        |l| l.contains("received: from-speech"),
+    );
+
+    // A CA of its own: the TLS handshake fails, nothing gets in.
+    let (status, out) = publish(2, &foreign.join("certs"), "speech", "from-foreign", true);
+    assert!(
+        !status.success(),
+        "a foreign certificate joined the bus:\n{out}"
+    );
+    // No TLS at all.
+    let (status, out) = publish(2, &foreign.join("certs"), "speech", "from-plain", false);
+    assert!(!status.success(), "plain TCP joined the bus:\n{out}");
+    // The right CA but no machine of the graph: the link opens (the tool runs to its end), and
+    // access control drops everything it sends.
+    let (status, out) = publish(2, &dir.join("certs"), "laptop", "from-laptop", true);
+    assert!(
+        status.success(),
+        "the laptop's link did not even open:\n{out}"
+    );
+
+    // Give anything that got through time to arrive, then look.
+    std::thread::sleep(Duration::from_secs(2));
+    let heard = robot.lines.all().join("\n");
+    for text in ["from-foreign", "from-plain", "from-laptop"] {
+        assert!(!heard.contains(text), "{text} got into the graph:\n{heard}");
+    }
+}
+
+#[test]
+fn a_launch_whose_other_machine_has_no_agent_says_so_and_fails() {
+    // Two "machines" on loopback (plain TCP stays on the host: no certificates needed).
+    let ns = unique_namespace("noagent");
+    let dir = scratch(&ns);
+    let (a, b) = (
+        robocog_tests::free_tcp_port(),
+        robocog_tests::free_tcp_port(),
+    );
+    let manifest = dir.join("graph.toml");
+    std::fs::write(
+        &manifest,
+        format!(
+            "[graph]\nname = \"noagent\"\n[machines.robot]\nrouter = \"tcp/127.0.0.1:{a}\"\n[machines.speech]\nrouter = \"tcp/127.0.0.1:{b}\"\n{TALK}"
+        ),
+    )
+    .unwrap();
+    let started = Instant::now();
+    let out = run(
+        &bin("robocog"),
+        &[
+            "launch".into(),
+            manifest.display().to_string(),
+            "--machine".into(),
+            "robot".into(),
+            "--namespace".into(),
+            ns.clone(),
+            "--router".into(),
+            "tcp/127.0.0.1:0".into(),
+            "--machine-timeout-s".into(),
+            "2".into(),
+            "--state-root".into(),
+            dir.join("state").display().to_string(),
+        ],
+        Duration::from_secs(30),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("no agent on machine speech within 2 s") && err.contains("robocog agent"),
+        "{err}"
+    );
+    assert!(started.elapsed() < Duration::from_secs(15));
+    // Without --machine, the launcher asks which machine it is on.
+    let out = run(
+        &bin("robocog"),
+        &["launch".into(), manifest.display().to_string()],
+        Duration::from_secs(30),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--machine") && err.contains("robot, speech"),
+        "{err}"
+    );
+}
