@@ -147,6 +147,27 @@ pub struct BusOptions {
     pub clock: Clock,
 }
 
+/// Sensor streams (camera frames): the newest frame is what matters, so under congestion (a slow
+/// link to another machine) a frame is dropped rather than held up, and it yields to everything
+/// else in zenoh's queues (ROS' sensor-data QoS). Everything else is reliable and blocks.
+const SENSOR_STREAMS: &[&str] = &["robocog.RgbdFrame"];
+
+fn congestion_control(type_name: &str) -> CongestionControl {
+    if SENSOR_STREAMS.contains(&type_name) {
+        CongestionControl::Drop
+    } else {
+        CongestionControl::Block
+    }
+}
+
+fn priority(type_name: &str) -> zenoh::qos::Priority {
+    if SENSOR_STREAMS.contains(&type_name) {
+        zenoh::qos::Priority::DataLow
+    } else {
+        zenoh::qos::Priority::Data
+    }
+}
+
 impl Bus {
     /// Join the bus as component `component` (its liveliness token is declared).
     pub async fn open(args: &ConnectArgs, component: &str) -> Result<Bus, BusError> {
@@ -313,7 +334,8 @@ impl Bus {
             .session
             .declare_publisher(key)
             .encoding(crate::raw::encoding_for(T::TYPE_NAME))
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(congestion_control(T::TYPE_NAME))
+            .priority(priority(T::TYPE_NAME))
             .await
             .map_err(zerr(format!("declaring a publisher on {name}")))?;
         let token = self

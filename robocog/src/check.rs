@@ -157,9 +157,47 @@ pub fn preflight(
 
 /// Check binaries, topics, services and hardware of `manifest`; with `preflight`, also ask every
 /// component whether it could start as configured (its files, models and devices), all at once.
-pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
+///
+/// Over several machines, `machine` is the one this runs on: only its components (and those
+/// placed on no machine) are preflighted here, and its certificate must be in the graph's
+/// folder; the others are checked on their machines.
+pub fn check(
+    manifest: &Manifest,
+    preflight: bool,
+    machine: Option<&str>,
+) -> Result<Report, Problems> {
     let mut problems = Vec::new();
     let mut report = Report::default();
+    if let Some(m) = machine
+        && !manifest.machines.is_empty()
+    {
+        match crate::machines::machine(manifest, m) {
+            Err(e) => problems.push(Problem {
+                origin: Origin {
+                    file: manifest.file.clone(),
+                    line: 0,
+                },
+                message: format!("{e:#}"),
+            }),
+            Ok(me) => {
+                if me.is_tls()
+                    && let Some(folder) = &manifest.certs
+                    && let Err(e) =
+                        crate::machines::MachineCerts::in_folder(folder, &me.name).check(&me.name)
+                {
+                    problems.push(Problem {
+                        origin: me.origin.clone(),
+                        message: format!("{e:#}"),
+                    });
+                }
+            }
+        }
+    }
+    let here = |c: &crate::manifest::Component| match (&c.machine, machine) {
+        (None, _) => true,
+        (Some(placed), Some(m)) => placed == m,
+        (Some(_), None) => false,
+    };
     for c in &manifest.components {
         match c.resolve_binary() {
             None => problems.push(Problem {
@@ -191,8 +229,16 @@ pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
             .components
             .iter()
             .filter(|c| report.interfaces.contains_key(&c.name))
+            .filter(|c| here(c))
             .filter_map(|c| Some((c, c.resolve_binary()?)))
             .collect();
+        for c in manifest.components.iter().filter(|c| !here(c)) {
+            let on = c.machine.as_deref().unwrap_or("?");
+            report.warnings.push(format!(
+                "{}: component {:?} runs on machine {on:?}: its files and devices are checked there (robocog check --machine {on})",
+                c.origin, c.name
+            ));
+        }
         let env: Vec<Vec<(String, String)>> = checks
             .iter()
             .map(|(c, _)| {
@@ -309,17 +355,21 @@ pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
             }
         }
     }
-    // Hardware the binaries claim themselves (after their arguments), against the manifest's.
-    let mut claims: HashMap<String, String> = HashMap::new();
+    // Hardware the binaries claim themselves (after their arguments), against the manifest's,
+    // per machine (a serial port on the robot and one of the same name on the speech machine
+    // are two ports).
+    let mut claims: HashMap<(String, String), String> = HashMap::new();
+    let machine_of = |c: &crate::manifest::Component| c.machine.clone().unwrap_or_default();
     for c in &manifest.components {
         for (h, _) in &c.hardware {
-            claims.insert(h.clone(), c.name.clone());
+            claims.insert((machine_of(c), h.clone()), c.name.clone());
         }
     }
     for c in &manifest.components {
         if let Some(i) = report.interfaces.get(&c.name) {
             for h in &i.hardware {
-                match claims.get(h) {
+                let key = (machine_of(c), h.clone());
+                match claims.get(&key) {
                     Some(owner) if owner != &c.name => problems.push(Problem {
                         origin: c.origin.clone(),
                         message: format!(
@@ -328,7 +378,7 @@ pub fn check(manifest: &Manifest, preflight: bool) -> Result<Report, Problems> {
                         ),
                     }),
                     _ => {
-                        claims.insert(h.clone(), c.name.clone());
+                        claims.insert(key, c.name.clone());
                     }
                 }
             }

@@ -26,6 +26,9 @@ use crate::manifest::{Machine, Manifest};
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 
+/// How many camera frames a second leave for another machine (see [`router_config`]).
+pub const REMOTE_CAMERA_HZ: f64 = 2.0;
+
 /// How long a link between routers may stay silent before its far end counts as gone.
 pub const LINK_LEASE_MS: u64 = 3000;
 
@@ -125,6 +128,22 @@ pub fn router_config(
         set("transport/link/tls/enable_mtls", "true".into())?;
         set("transport/link/tls/verify_name_on_connect", "true".into())?;
         set("access_control", access_control(manifest, namespace))?;
+        // Raw camera frames do not cross machines at full rate (1.5 MB each): a viewer or the
+        // panel elsewhere gets a few a second.
+        set(
+            "downsampling",
+            serde_json::json!([{
+                "id": "camera frames to other machines",
+                "link_protocols": ["tls"],
+                "flows": ["egress"],
+                "messages": ["put"],
+                "rules": [{
+                    "key_expr": format!("robocog/{namespace}/vision/rgbd"),
+                    "freq": REMOTE_CAMERA_HZ,
+                }],
+            }])
+            .to_string(),
+        )?;
     }
     Ok(config)
 }
@@ -188,6 +207,7 @@ pub async fn open_router(
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
     use crate::manifest::Overrides;
 

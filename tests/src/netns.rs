@@ -2,6 +2,8 @@
 //! bridge in a namespace of its own), for the tests of graphs over several machines. Needs root
 //! (CAP_NET_ADMIN), as CI has. Traffic never leaves the host.
 //!
+//! Links can be made slow and lossy ([`Net::impair`]).
+//!
 //! Machine `i` is the namespace `<name>-m<i>` with `eth0` at `10.88.0.<i+1>/24` and its own
 //! loopback; the switch is `<name>-sw`. Everything is deleted when the [`Net`] is dropped (a
 //! test that panics too), and namespaces that a dead test process left are deleted by the next.
@@ -16,6 +18,8 @@ const PREFIX: &str = "rct";
 pub struct Net {
     name: String,
     machines: usize,
+    /// Processes of the network itself (the delay lines).
+    helpers: Vec<Proc>,
 }
 
 fn ip(args: &[&str]) {
@@ -68,7 +72,11 @@ impl Net {
         PRUNED.call_once(prune);
         let n = N.fetch_add(1, Ordering::Relaxed);
         let name = format!("{PREFIX}-{}-{n}", std::process::id());
-        let net = Net { name, machines: 0 };
+        let net = Net {
+            name,
+            machines: 0,
+            helpers: Vec::new(),
+        };
         let sw = net.switch();
         ip(&["netns", "add", &sw]);
         let mut net = net;
@@ -125,21 +133,74 @@ impl Net {
         format!("10.88.0.{}", i + 1)
     }
 
-    /// Every packet machine `i` sends goes through `tc netem` with these settings (`delay 20ms
-    /// loss 1%`).
-    pub fn netem(&self, i: usize, settings: &[&str]) {
+    /// Machine `i`'s outgoing links made slow and lossy: every TCP connection it opens to
+    /// another machine passes through a delay line (`delay_line`, holding each chunk `delay_ms`
+    /// each way), and the kernel drops `loss_permille` of every thousand packets it sends. (This
+    /// kernel has no `netem`; the delay line is the same thing for TCP streams, and the loss is
+    /// real packet loss that TCP retransmits.) Needs nftables.
+    pub fn impair(&mut self, i: usize, delay_ms: u64, loss_permille: u32) {
         let ns = self.ns(i);
-        let mut args = vec![
-            "-n", &ns, "qdisc", "replace", "dev", "eth0", "root", "netem",
-        ];
-        args.extend_from_slice(settings);
-        let out = Command::new("tc").args(&args).output().expect("run tc(8)");
+        let rules = format!(
+            "table ip robocog_test {{
+  chain divert {{
+    type nat hook output priority -100; policy accept;
+    oifname \"lo\" return
+    meta mark 0x52 return
+    ip protocol tcp redirect to :17450
+  }}
+  chain lossy {{
+    type filter hook postrouting priority 0; policy accept;
+    oifname != \"lo\" numgen random mod 1000 < {loss_permille} drop
+  }}
+}}
+"
+        );
+        let mut nft = Command::new("ip")
+            .args(["netns", "exec", &ns, "nft", "-f", "-"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("run nft (Debian's nftables)");
+        {
+            use std::io::Write;
+            let mut stdin = nft.stdin.take().expect("nft stdin");
+            stdin.write_all(rules.as_bytes()).expect("write the rules");
+        }
+        let out = nft.wait_with_output().expect("nft");
         assert!(
             out.status.success(),
-            "tc {} failed: {}",
-            args.join(" "),
+            "nft in {ns}: {}",
             String::from_utf8_lossy(&out.stderr)
         );
+        let line = self.spawn(
+            i,
+            &crate::bin("delay_line"),
+            &[
+                "--listen".into(),
+                "127.0.0.1:17450".into(),
+                "--delay-ms".into(),
+                delay_ms.to_string(),
+            ],
+        );
+        line.lines
+            .wait_for("the delay line", std::time::Duration::from_secs(10), |l| {
+                l.starts_with("delay line on")
+            });
+        self.helpers.push(line);
+    }
+
+    /// How many connections the delay lines relayed to machine `i`'s address (so a test knows
+    /// its links really went through them).
+    pub fn relayed_to(&self, i: usize) -> usize {
+        let to = format!("-> {}:", self.ip(i));
+        self.helpers
+            .iter()
+            .map(|h| {
+                h.lines
+                    .count(|l| l.starts_with("relaying") && l.contains(&to))
+            })
+            .sum()
     }
 
     /// Machine `i`'s cable unplugged (`false`) or back (`true`).
@@ -175,6 +236,7 @@ impl Net {
 
 impl Drop for Net {
     fn drop(&mut self) {
+        self.helpers.clear();
         let mut all: Vec<String> = (0..self.machines).map(|i| self.ns(i)).collect();
         all.push(self.switch());
         for ns in all {

@@ -381,3 +381,121 @@ fn a_launch_whose_other_machine_has_no_agent_says_so_and_fails() {
         "{err}"
     );
 }
+
+/// Loki's game over three machines as the seed split it, each link 20 ms late and losing 1 % of
+/// its packets, and the speech machine's cable pulled in the middle of the game: the robot says
+/// it cannot hear, the speech machine's components run on, and once the cable is back the game
+/// goes on to its end without the person repeating herself.
+#[test]
+fn the_touch_game_over_three_machines_survives_a_slow_lossy_network_and_a_lost_speech_machine() {
+    let ns = unique_namespace("split");
+    let mut net = Net::new(3);
+    let dir = scratch(&ns);
+    let manifest =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch/touch_the_ball_split.toml");
+    let sets: Vec<String> = [
+        format!("robot_ip={}", net.ip(0)),
+        format!("speech_ip={}", net.ip(1)),
+        format!("operator_ip={}", net.ip(2)),
+        format!("certs={}", dir.join("certs").display()),
+        "scenario=machine_away".into(),
+        "panel_http=127.0.0.1:0".into(),
+    ]
+    .into_iter()
+    .flat_map(|s| ["--set".to_string(), s])
+    .collect();
+    let mut args = vec!["certs".to_string(), manifest.display().to_string()];
+    args.extend(sets.iter().cloned());
+    let out = run(&bin("robocog"), &args, Duration::from_secs(30));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for i in 0..3 {
+        net.impair(i, 20, 10);
+    }
+    let agent_with_sets = |i: usize, machine: &str| {
+        let mut a = vec![
+            "agent".to_string(),
+            manifest.display().to_string(),
+            "--machine".into(),
+            machine.into(),
+            "--namespace".into(),
+            ns.clone(),
+            "--router".into(),
+            "tcp/127.0.0.1:0".into(),
+            "--state-root".into(),
+            dir.join(format!("state-{machine}")).display().to_string(),
+        ];
+        a.extend(sets.iter().cloned());
+        let p = net.spawn(i, &bin("robocog"), &a);
+        p.lines
+            .wait_for("the agent ready", Duration::from_secs(30), |l| {
+                l.contains("ready: waiting for a launch") || l.starts_with("error")
+            });
+        p
+    };
+    let speech = agent_with_sets(1, "speech");
+    let _operator = agent_with_sets(2, "operator");
+    let sets_ref: Vec<&str> = sets.iter().map(String::as_str).collect();
+    let mut robot = launch(&net, 0, "robot", &manifest, &ns, &sets_ref);
+
+    // The person sees the robot look at the ball: the speech machine's cable is pulled.
+    robot.lines.wait_for(
+        "the robot looking at the ball",
+        Duration::from_secs(180),
+        |l| l.contains("person: sees gaze within"),
+    );
+    net.link(1, false);
+    let pulled = Instant::now();
+    robot.lines.wait_for(
+        "the speech machine out of reach",
+        Duration::from_secs(15),
+        |l| l.contains("machine speech is out of reach"),
+    );
+    robot.lines.wait_for(
+        "the robot saying it cannot hear",
+        Duration::from_secs(15),
+        |l| l.contains("robot/executive |") && l.contains("nothing brings the person's voice"),
+    );
+    let away = Duration::from_secs(12);
+    std::thread::sleep(away.saturating_sub(pulled.elapsed()));
+    net.link(1, true);
+    robot.lines.wait_for(
+        "the speech machine back, its components still running",
+        Duration::from_secs(30),
+        |l| {
+            l.contains("machine speech:")
+                && l.contains("dialogs")
+                && l.contains("ran on while it was away")
+        },
+    );
+    robot.lines.wait_for(
+        "the robot saying it hears again",
+        Duration::from_secs(20),
+        |l| l.contains("robot/executive |") && l.contains("the voice is back"),
+    );
+
+    // The game goes on to its end: the person, on the speech machine, completes her scenario.
+    let status = robot.wait_exit(Duration::from_secs(180));
+    let out = robot.lines.all().join("\n");
+    // The links between the machines went through the delay lines (the speech machine's twice:
+    // before the cable was pulled and after).
+    for i in 0..3 {
+        assert!(net.relayed_to(i) >= 1, "no link to machine {i} was delayed");
+    }
+    assert!(status.success(), "the game did not complete:\n{out}");
+    assert!(out.contains("speech/loki_world |"), "{out}");
+    assert!(out.contains("loki_world completed"), "{out}");
+    assert_eq!(
+        robot.lines.count(|l| l.contains("says it again")),
+        0,
+        "the person had to repeat herself:\n{out}"
+    );
+    assert_eq!(
+        speech.lines.count(|l| l.contains("started dialogs")),
+        1,
+        "the speech machine's components were restarted"
+    );
+}

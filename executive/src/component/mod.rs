@@ -85,6 +85,17 @@ pub struct Config {
     /// folder, ROBOCOG_STATE_DIR): `touch.json` or `coach.json`.
     #[arg(long, env = "ROBOCOG_STATE_DIR")]
     pub state_dir: Option<PathBuf>,
+    /// The components that bring the person's voice to the game as commands on `game/command`
+    /// (comma-separated; the touch game's `dialogs`). When none of them has published there for
+    /// `--hearing-grace-s` (its machine dropped off the network, or it is gone for longer than a
+    /// restart), the robot says it cannot hear, and that it can again once one is back. Empty:
+    /// never said.
+    #[arg(long, value_delimiter = ',')]
+    pub hearing_from: Vec<String>,
+    /// How long the voice's components may be away before the robot says it cannot hear (s):
+    /// longer than a restart of theirs (which they announce themselves).
+    #[arg(long, default_value_t = 5.0)]
+    pub hearing_grace_s: f64,
 }
 
 impl Config {
@@ -428,6 +439,8 @@ mod tests {
             print_dot: false,
             exit_when_finished: false,
             state_dir: None,
+            hearing_from: vec![],
+            hearing_grace_s: 5.0,
         };
         let (stop, shutdown) = Shutdown::new();
         let exec = tokio::spawn(run_touch(exec_bus, config, Settings::default(), shutdown));

@@ -111,6 +111,86 @@ impl TrackerWatch {
     }
 }
 
+/// What the robot says when nothing brings the person's voice to the game any more.
+pub const CANNOT_HEAR: &str = "I can't hear you for a moment. Please wait.";
+/// What it says when the voice is back.
+pub const HEAR_AGAIN: &str = "I can hear you again.";
+
+/// Follows the components that bring the person's voice to the game (`--hearing-from`): when
+/// all of them have been gone [`HearingWatch::grace`] (their machine dropped off the network,
+/// say), the robot says it cannot hear; once one is back, that it can again. A restart shorter
+/// than the grace goes unsaid (the voice's components announce their own restarts).
+#[derive(Debug)]
+pub(super) struct HearingWatch {
+    from: Vec<String>,
+    grace: Duration,
+    /// Heard at least once (before that, nothing is missing).
+    seen: bool,
+    gone_since: Option<Moment>,
+    said: bool,
+}
+
+impl HearingWatch {
+    pub(super) fn new(from: Vec<String>, grace: Duration) -> Self {
+        Self {
+            from: from.into_iter().filter(|f| !f.is_empty()).collect(),
+            grace,
+            seen: false,
+            gone_since: None,
+            said: false,
+        }
+    }
+    pub(super) fn names(&self) -> &[String] {
+        &self.from
+    }
+    /// The components present changed at `now` (`present`: one of ours publishes): what to log
+    /// and say, if anything.
+    pub(super) fn update(&mut self, present: bool, now: Moment) -> Option<(&'static str, String)> {
+        if self.from.is_empty() {
+            return None;
+        }
+        if present {
+            self.seen = true;
+            self.gone_since = None;
+            if std::mem::take(&mut self.said) {
+                return Some((
+                    HEAR_AGAIN,
+                    format!(
+                        "the voice is back ({} publishes commands again)",
+                        self.from.join(", ")
+                    ),
+                ));
+            }
+        } else if self.seen && self.gone_since.is_none() {
+            self.gone_since = Some(now);
+        }
+        None
+    }
+    /// When "cannot hear" falls due, for the loop's sleep.
+    pub(super) fn deadline(&self) -> Option<Moment> {
+        self.gone_since
+            .filter(|_| !self.said)
+            .map(|t| t + self.grace)
+    }
+    /// Whether "cannot hear" is due at `now` (once per absence).
+    pub(super) fn due(&mut self, now: Moment) -> Option<(&'static str, String)> {
+        match self.deadline() {
+            Some(d) if now >= d => {
+                self.said = true;
+                Some((
+                    CANNOT_HEAR,
+                    format!(
+                        "nothing brings the person's voice to the game: {} gone for {:.0} s (its machine or its link down?)",
+                        self.from.join(", "),
+                        self.grace.as_secs_f64()
+                    ),
+                ))
+            }
+            _ => None,
+        }
+    }
+}
+
 /// Follows `vision/camera_status`: the robot says when its camera stops, and when it is back.
 /// A camera that flaps (stops and comes back again and again) is announced once per
 /// [`CAMERA_REPEAT`]; every change is logged.
@@ -297,6 +377,12 @@ pub(super) async fn run_touch(
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
     let cameras = bus.subscriber(&topics::VISION_CAMERA_STATUS).await?;
     let mut camera = CameraWatch::default();
+    let mut hearing = HearingWatch::new(
+        config.hearing_from.clone(),
+        Duration::from_secs_f64(config.hearing_grace_s.clamp(0.5, 600.0)),
+    );
+    let mut voices =
+        interfaces::liveliness::Readers::watch_writers(&bus, &topics::GAME_COMMAND).await?;
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -334,6 +420,8 @@ pub(super) async fn run_touch(
     out.emit(o).await?;
     kept.save(game.resume_record(), bus.counters());
     let mut watch = TrackerWatch::default();
+    // The voice's components already there (later changes come from `voices.changed()`).
+    let _ = hearing.update(voices.any_of(hearing.names()), clock.now());
     loop {
         // Wake on the clock for the machine's next timer, or the tracker watchdog's.
         let deadline = [
@@ -341,6 +429,7 @@ pub(super) async fn run_touch(
             watch
                 .deadline()
                 .filter(|_| game.machine().is_active(touch::state::TRACKING)),
+            hearing.deadline(),
         ]
         .into_iter()
         .flatten()
@@ -382,6 +471,15 @@ pub(super) async fn run_touch(
                 game.ball_track(&t, bus_now(&bus))
             }
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
+            _ = voices.changed() => {
+                let present = voices.any_of(hearing.names());
+                if let Some((said, log)) = hearing.update(present, clock.now()) {
+                    tracing::warn!("{log}");
+                    out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
+                    out.say_now(said).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
             c = cameras.recv() => {
                 let c = c?;
                 if let Some((said, log)) = camera.update(&c, clock.now()) {
@@ -416,7 +514,14 @@ pub(super) async fn run_touch(
                 }
                 game.advance(bus_now(&bus))
             }
-            _ = sleep_until(&clock, deadline) => game.advance(bus_now(&bus)),
+            _ = sleep_until(&clock, deadline) => {
+                if let Some((said, log)) = hearing.due(clock.now()) {
+                    tracing::warn!("{log}");
+                    out.log_line(LogLine { kind: "anomaly", text: log, distance_m: -1.0 }).await?;
+                    out.say_now(said).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
         };
         // The configuration is current before anyone hears of the step, and the record is kept
         // before the step's outputs go out (with the command's stamp, when a command made it).
@@ -456,5 +561,47 @@ pub(super) async fn run_touch(
             tracing::info!("the game is over: exiting");
             return Ok(());
         }
+    }
+}
+
+#[cfg(test)]
+mod hearing_tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn at(s: f64) -> Moment {
+        Moment::from_duration(Duration::from_secs_f64(s))
+    }
+
+    #[test]
+    fn the_robot_says_it_cannot_hear_once_the_voice_is_gone_past_the_grace_and_when_it_is_back() {
+        let mut h = HearingWatch::new(vec!["dialogs".into(), "".into()], Duration::from_secs(5));
+        assert_eq!(h.names(), ["dialogs"]);
+        // Gone before it was ever there: nothing is missing.
+        assert_eq!(h.update(false, at(0.0)), None);
+        assert_eq!(h.deadline(), None);
+        assert_eq!(h.update(true, at(1.0)), None);
+        // A restart shorter than the grace goes unsaid.
+        assert_eq!(h.update(false, at(2.0)), None);
+        assert_eq!(h.due(at(6.9)), None);
+        assert_eq!(h.update(true, at(3.0)), None);
+        assert_eq!(h.due(at(10.0)), None);
+        // Gone for good: said once, at the grace.
+        assert_eq!(h.update(false, at(20.0)), None);
+        assert_eq!(h.deadline(), Some(at(25.0)));
+        assert_eq!(h.due(at(24.9)), None);
+        let (said, log) = h.due(at(25.0)).unwrap();
+        assert_eq!(said, CANNOT_HEAR);
+        assert!(log.contains("dialogs"), "{log}");
+        assert_eq!(h.due(at(40.0)), None);
+        assert_eq!(h.deadline(), None);
+        // Back: said once.
+        assert_eq!(h.update(true, at(41.0)).map(|(s, _)| s), Some(HEAR_AGAIN));
+        assert_eq!(h.update(true, at(42.0)), None);
+        // Nothing to watch: never said.
+        let mut none = HearingWatch::new(vec![], Duration::from_secs(1));
+        assert_eq!(none.update(true, at(0.0)), None);
+        assert_eq!(none.update(false, at(1.0)), None);
+        assert_eq!(none.due(at(100.0)), None);
     }
 }

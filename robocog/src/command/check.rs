@@ -16,6 +16,10 @@ pub struct Args {
     /// files, models and devices); check the graph's structure only.
     #[arg(long)]
     pub no_preflight: bool,
+    /// For a graph over several machines: the machine this is. Its components are preflighted
+    /// and its certificate looked for; the other machines' components are checked there.
+    #[arg(long, env = "ROBOCOG_MACHINE")]
+    pub machine: Option<String>,
 }
 
 /// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
@@ -27,7 +31,7 @@ pub fn execute(args: Args) -> i32 {
             return 1;
         }
     };
-    match crate::check::check(&manifest, !args.no_preflight) {
+    match crate::check::check(&manifest, !args.no_preflight, args.machine.as_deref()) {
         Ok(report) => {
             for w in &report.warnings {
                 eprintln!("warning: {w}");

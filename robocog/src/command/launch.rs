@@ -75,7 +75,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     };
     // The graph's structure only: a component whose files or devices are missing says so
     // itself at start (exit 78), and the launcher stops at once with its message.
-    match crate::check::check(&manifest, false) {
+    match crate::check::check(&manifest, false, args.machine.as_deref()) {
         Ok(report) => {
             for w in &report.warnings {
                 eprintln!("warning: {w}");

@@ -57,6 +57,10 @@ pub const BUILT_IN: &[(&str, &str)] = &[
         "restart_mid_game",
         include_str!("../scenarios/restart_mid_game.toml"),
     ),
+    (
+        "machine_away",
+        include_str!("../scenarios/machine_away.toml"),
+    ),
 ];
 
 #[derive(Debug, thiserror::Error)]
