@@ -29,6 +29,7 @@
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use interfaces::msg::std_msgs::{Counter64, Ping};
+use interfaces::router::{MachineRouter, TlsFiles, machine_router_config};
 use interfaces::{Bus, ConnectArgs, topics};
 use serde_json::{Map, Value};
 use std::io::{Read, Write};
@@ -140,53 +141,32 @@ fn announce_ready(what: &str) -> anyhow::Result<()> {
 /// A machine's router, configured as `robocog::machines::router_config` does (plus shared
 /// memory off: two machines share none).
 async fn router(cli: &Cli) -> anyhow::Result<()> {
-    let mut config = zenoh::Config::default();
-    let mut set = |key: &str, value: String| -> anyhow::Result<()> {
-        config
-            .insert_json5(key, &value)
-            .map_err(|e| anyhow::anyhow!("router configuration {key}: {e}"))
+    let [local_listen, endpoint] = cli.listen.as_slice() else {
+        anyhow::bail!("--listen takes two endpoints: loopback, then the machine's");
     };
-    set("mode", "\"router\"".into())?;
-    set("scouting/multicast/enabled", "false".into())?;
-    set("scouting/gossip/enabled", "false".into())?;
-    set("listen/endpoints", serde_json::to_string(&cli.listen)?)?;
-    set("connect/endpoints", serde_json::to_string(&cli.connect)?)?;
-    set("transport/link/tx/lease", "3000".into())?;
-    set("transport/shared_memory/enabled", "false".into())?;
-    if let Some(dir) = &cli.tls_dir {
-        let file = |name: String| -> anyhow::Result<String> {
-            let p = dir.join(name);
+    let tls = cli.tls_dir.as_ref().map(|dir| TlsFiles {
+        ca: dir.join("ca.pem"),
+        cert: dir.join(format!("{}.pem", cli.machine)),
+        key: dir.join(format!("{}.key", cli.machine)),
+    });
+    if let Some(t) = &tls {
+        for p in [&t.ca, &t.cert, &t.key] {
             anyhow::ensure!(p.is_file(), "missing {}", p.display());
-            Ok(serde_json::to_string(&p.display().to_string())?)
-        };
-        let me = &cli.machine;
-        set(
-            "transport/link/tls/root_ca_certificate",
-            file("ca.pem".into())?,
-        )?;
-        set(
-            "transport/link/tls/listen_certificate",
-            file(format!("{me}.pem"))?,
-        )?;
-        set(
-            "transport/link/tls/listen_private_key",
-            file(format!("{me}.key"))?,
-        )?;
-        set(
-            "transport/link/tls/connect_certificate",
-            file(format!("{me}.pem"))?,
-        )?;
-        set(
-            "transport/link/tls/connect_private_key",
-            file(format!("{me}.key"))?,
-        )?;
-        set("transport/link/tls/enable_mtls", "true".into())?;
-        set("transport/link/tls/verify_name_on_connect", "true".into())?;
-        set(
-            "access_control",
-            access_control(&cli.machines, &cli.namespace),
-        )?;
+        }
     }
+    // The configuration `robocog launch` and `robocog agent` give a machine's router.
+    let mut config = machine_router_config(&MachineRouter {
+        local_listen: local_listen.clone(),
+        endpoint: endpoint.clone(),
+        peers: cli.connect.clone(),
+        tls,
+        machines: cli.machines.clone(),
+        namespace: cli.namespace.clone(),
+    })?;
+    // Two namespaces share /dev/shm, two machines do not.
+    config
+        .insert_json5("transport/shared_memory/enabled", "false")
+        .map_err(|e| anyhow::anyhow!("router shared memory: {e}"))?;
     let session = zenoh::open(config)
         .await
         .map_err(|e| anyhow::anyhow!("cannot start the router on {:?}: {e}", cli.listen))?;
@@ -205,34 +185,6 @@ async fn router(cli: &Cli) -> anyhow::Result<()> {
     announce_ready(&locators.join(","))?;
     tokio::time::sleep(Duration::from_secs(cli.max_secs)).await;
     Ok(())
-}
-
-/// The graph's access control, as `robocog/src/machines.rs` writes it.
-fn access_control(machines: &[String], namespace: &str) -> String {
-    serde_json::json!({
-        "enabled": true,
-        "default_permission": "deny",
-        "rules": [{
-            "id": "graph",
-            "permission": "allow",
-            "flows": ["ingress", "egress"],
-            "messages": [
-                "put", "delete", "declare_subscriber", "query", "reply",
-                "declare_queryable", "liveliness_token", "declare_liveliness_subscriber",
-                "liveliness_query"
-            ],
-            "key_exprs": [format!("robocog/{namespace}/**")],
-        }],
-        "subjects": [
-            { "id": "this machine", "interfaces": ["lo"] },
-            { "id": "the graph's machines", "cert_common_names": machines },
-        ],
-        "policies": [{
-            "rules": ["graph"],
-            "subjects": ["this machine", "the graph's machines"],
-        }],
-    })
-    .to_string()
 }
 
 /// A client of the local router, shared memory off.

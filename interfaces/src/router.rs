@@ -33,3 +33,121 @@ pub async fn open_router(listen: &str) -> Result<(zenoh::Session, String), BusEr
         .ok_or_else(|| BusError::Config(format!("the router on {listen} has no TCP endpoint")))?;
     Ok((session, endpoint))
 }
+
+/// How long a link between two machines' routers may stay silent before its far end counts as
+/// gone (zenoh's default is 10 s): a machine that drops off is noticed within this.
+pub const LINK_LEASE_MS: u64 = 3000;
+
+/// How many camera frames (`vision/rgbd`) a second leave for another machine over TLS.
+pub const REMOTE_CAMERA_HZ: f64 = 2.0;
+
+/// The certificate files of one machine (mutual TLS between machines).
+#[derive(Debug, Clone)]
+pub struct TlsFiles {
+    /// The graph's CA, which signed every machine's certificate.
+    pub ca: std::path::PathBuf,
+    /// This machine's certificate (common name: the machine's name; subject names: the host of
+    /// its endpoint) and key.
+    pub cert: std::path::PathBuf,
+    pub key: std::path::PathBuf,
+}
+
+/// One machine's router in a graph over several machines.
+#[derive(Debug, Clone)]
+pub struct MachineRouter {
+    /// Where this machine's own components join, plain (`tcp/127.0.0.1:7447`).
+    pub local_listen: String,
+    /// Where the other machines' routers join this one (`tls/10.0.0.2:7447`).
+    pub endpoint: String,
+    /// The other machines' endpoints, dialled (and redialled when lost).
+    pub peers: Vec<String>,
+    /// Mutual TLS and access control between machines; `None`: plain TCP, no access control.
+    pub tls: Option<TlsFiles>,
+    /// Every machine of the graph: the certificates' common names the access control lets in.
+    pub machines: Vec<String>,
+    /// The graph's namespace: the only keys the access control lets through.
+    pub namespace: String,
+}
+
+/// The zenoh configuration of a machine's router: it listens on loopback for its own components
+/// and on its endpoint for the other machines, dials the other machines, keeps multicast
+/// scouting and gossip off, notices a lost machine in [`LINK_LEASE_MS`], and with TLS asks every
+/// other machine for a certificate of the graph's CA (and shows its own), lets through only the
+/// graph's keys from loopback and from the graph's machines, and lets camera frames cross to
+/// other machines at [`REMOTE_CAMERA_HZ`].
+pub fn machine_router_config(r: &MachineRouter) -> Result<zenoh::Config, BusError> {
+    let mut config = zenoh::Config::default();
+    let mut set = |key: &str, value: String| -> Result<(), BusError> {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| BusError::Config(format!("router {key}: {e}")))
+    };
+    set("mode", "\"router\"".into())?;
+    set("scouting/multicast/enabled", "false".into())?;
+    set("scouting/gossip/enabled", "false".into())?;
+    set("listen/endpoints", json(&[&r.local_listen, &r.endpoint]))?;
+    set("connect/endpoints", json(&r.peers))?;
+    set("transport/link/tx/lease", LINK_LEASE_MS.to_string())?;
+    if let Some(tls) = &r.tls {
+        let path = |p: &std::path::Path| json(&p.display().to_string());
+        set("transport/link/tls/root_ca_certificate", path(&tls.ca))?;
+        set("transport/link/tls/listen_certificate", path(&tls.cert))?;
+        set("transport/link/tls/listen_private_key", path(&tls.key))?;
+        set("transport/link/tls/connect_certificate", path(&tls.cert))?;
+        set("transport/link/tls/connect_private_key", path(&tls.key))?;
+        set("transport/link/tls/enable_mtls", "true".into())?;
+        set("transport/link/tls/verify_name_on_connect", "true".into())?;
+        set(
+            "access_control",
+            access_control(&r.machines, &r.namespace).to_string(),
+        )?;
+        set(
+            "downsampling",
+            serde_json::json!([{
+                "id": "camera frames to other machines",
+                "link_protocols": ["tls"],
+                "flows": ["egress"],
+                "messages": ["put"],
+                "rules": [{
+                    "key_expr": format!("robocog/{}/vision/rgbd", r.namespace),
+                    "freq": REMOTE_CAMERA_HZ,
+                }],
+            }])
+            .to_string(),
+        )?;
+    }
+    Ok(config)
+}
+
+/// zenoh's access control for a graph: everything on the graph's keys from loopback and from
+/// the graph's machines (by their certificates' common names), nothing else.
+fn access_control(machines: &[String], namespace: &str) -> serde_json::Value {
+    serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": [{
+            "id": "graph",
+            "permission": "allow",
+            "flows": ["ingress", "egress"],
+            "messages": [
+                "put", "delete", "declare_subscriber", "query", "reply",
+                "declare_queryable", "liveliness_token", "declare_liveliness_subscriber",
+                "liveliness_query"
+            ],
+            "key_exprs": [format!("robocog/{namespace}/**")],
+        }],
+        "subjects": [
+            { "id": "this machine", "interfaces": ["lo"] },
+            { "id": "the graph's machines", "cert_common_names": machines },
+        ],
+        "policies": [{
+            "rules": ["graph"],
+            "subjects": ["this machine", "the graph's machines"],
+        }],
+    })
+}
+
+/// A value as JSON text, for the configuration's lists and strings.
+fn json<T: serde::Serialize + ?Sized>(v: &T) -> String {
+    serde_json::to_string(v).unwrap_or_default()
+}

@@ -83,6 +83,14 @@ fn say(machine: &str, msg: impl std::fmt::Display) {
     eprintln!("agent {machine} | {msg}");
 }
 
+fn components(n: usize) -> String {
+    if n == 1 {
+        "1 component".into()
+    } else {
+        format!("{n} components")
+    }
+}
+
 fn raw_status(status: Option<ExitStatus>) -> i32 {
     status.map_or(-1, |s| s.into_raw())
 }
@@ -210,7 +218,8 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
                     let n = shared.running.lock().unwrap_or_else(|p| p.into_inner()).len();
                     if n > 0 {
                         say(&me.name, format!(
-                            "the launcher is out of reach: its {n} components here run on, and are stopped if it is not back within {:.0} s",
+                            "the launcher is out of reach: its {} here run on, and are stopped if it is not back within {:.0} s",
+                            components(n),
                             opts.orphan_after.as_secs_f64()
                         ));
                     }
@@ -223,8 +232,9 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
                     let n = shared.running.lock().unwrap_or_else(|p| p.into_inner()).len();
                     if n > 0 {
                         say(&me.name, format!(
-                            "the launcher has been gone {:.0} s: stopping its {n} components",
-                            opts.orphan_after.as_secs_f64()
+                            "the launcher has been gone {:.0} s: stopping its {}",
+                            opts.orphan_after.as_secs_f64(),
+                            components(n)
                         ));
                         stop_all(&shared).await;
                     }

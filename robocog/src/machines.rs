@@ -24,13 +24,8 @@
 
 use crate::manifest::{Machine, Manifest};
 use anyhow::{Context, bail};
+use interfaces::router::{MachineRouter, TlsFiles, machine_router_config};
 use std::path::{Path, PathBuf};
-
-/// How many camera frames a second leave for another machine (see [`router_config`]).
-pub const REMOTE_CAMERA_HZ: f64 = 2.0;
-
-/// How long a link between routers may stay silent before its far end counts as gone.
-pub const LINK_LEASE_MS: u64 = 3000;
 
 /// The certificate files of one machine in a graph's `certs` folder.
 #[derive(Debug, Clone)]
@@ -82,100 +77,44 @@ pub fn machine<'m>(manifest: &'m Manifest, name: &str) -> anyhow::Result<&'m Mac
         })
 }
 
-/// The zenoh configuration of machine `me`'s router: loopback at `local_listen`, the machine's
-/// endpoint for the others, a dial to every other machine, TLS and access control when the
-/// graph has certificates.
+/// The zenoh configuration of machine `me`'s router ([`interfaces::router::machine_router_config`]):
+/// loopback at `local_listen`, the machine's endpoint for the others, a dial to every other
+/// machine, TLS and access control when its endpoint is `tls/`.
 pub fn router_config(
     manifest: &Manifest,
     me: &Machine,
     local_listen: &str,
     namespace: &str,
 ) -> anyhow::Result<zenoh::Config> {
-    let mut config = zenoh::Config::default();
-    let mut set = |key: &str, value: String| -> anyhow::Result<()> {
-        config
-            .insert_json5(key, &value)
-            .map_err(|e| anyhow::anyhow!("router configuration {key}: {e}"))
-    };
-    let others: Vec<&str> = manifest
-        .machines
-        .iter()
-        .filter(|m| m.name != me.name)
-        .map(|m| m.router.as_str())
-        .collect();
-    set("mode", "\"router\"".into())?;
-    set("scouting/multicast/enabled", "false".into())?;
-    set("scouting/gossip/enabled", "false".into())?;
-    set(
-        "listen/endpoints",
-        serde_json::to_string(&[local_listen, me.router.as_str()])?,
-    )?;
-    set("connect/endpoints", serde_json::to_string(&others)?)?;
-    set("transport/link/tx/lease", LINK_LEASE_MS.to_string())?;
-    if me.is_tls() {
+    let tls = if me.is_tls() {
         let folder = manifest
             .certs
             .as_deref()
             .context("TLS between machines needs [graph] certs")?;
         let certs = MachineCerts::in_folder(folder, &me.name);
         certs.check(&me.name)?;
-        let path = |p: &Path| serde_json::to_string(&p.display().to_string());
-        set("transport/link/tls/root_ca_certificate", path(&certs.ca)?)?;
-        set("transport/link/tls/listen_certificate", path(&certs.cert)?)?;
-        set("transport/link/tls/listen_private_key", path(&certs.key)?)?;
-        set("transport/link/tls/connect_certificate", path(&certs.cert)?)?;
-        set("transport/link/tls/connect_private_key", path(&certs.key)?)?;
-        set("transport/link/tls/enable_mtls", "true".into())?;
-        set("transport/link/tls/verify_name_on_connect", "true".into())?;
-        set("access_control", access_control(manifest, namespace))?;
-        // Raw camera frames do not cross machines at full rate (1.5 MB each): a viewer or the
-        // panel elsewhere gets a few a second.
-        set(
-            "downsampling",
-            serde_json::json!([{
-                "id": "camera frames to other machines",
-                "link_protocols": ["tls"],
-                "flows": ["egress"],
-                "messages": ["put"],
-                "rules": [{
-                    "key_expr": format!("robocog/{namespace}/vision/rgbd"),
-                    "freq": REMOTE_CAMERA_HZ,
-                }],
-            }])
-            .to_string(),
-        )?;
-    }
-    Ok(config)
-}
-
-/// zenoh's access control for a graph: everything on the graph's keys from loopback and from
-/// the graph's machines (by their certificates' common names), nothing else.
-fn access_control(manifest: &Manifest, namespace: &str) -> String {
-    let names: Vec<&str> = manifest.machines.iter().map(|m| m.name.as_str()).collect();
-    serde_json::json!({
-        "enabled": true,
-        "default_permission": "deny",
-        "rules": [{
-            "id": "graph",
-            "permission": "allow",
-            "flows": ["ingress", "egress"],
-            "messages": [
-                "put", "delete", "declare_subscriber", "query", "reply",
-                "declare_queryable", "liveliness_token", "declare_liveliness_subscriber",
-                "liveliness_query"
-            ],
-            "key_exprs": [format!("robocog/{namespace}/**")],
-        }],
-        "subjects": [
-            { "id": "this machine", "interfaces": ["lo"] },
-            { "id": "the graph's machines", "cert_common_names": names },
-        ],
-        "policies": [{
-            "rules": ["graph"],
-            "subjects": ["this machine", "the graph's machines"],
-        }],
-    })
-    .to_string()
+        Some(TlsFiles {
+            ca: certs.ca,
+            cert: certs.cert,
+            key: certs.key,
+        })
+    } else {
+        None
+    };
+    let router = MachineRouter {
+        local_listen: local_listen.to_string(),
+        endpoint: me.router.clone(),
+        peers: manifest
+            .machines
+            .iter()
+            .filter(|m| m.name != me.name)
+            .map(|m| m.router.clone())
+            .collect(),
+        tls,
+        machines: manifest.machines.iter().map(|m| m.name.clone()).collect(),
+        namespace: namespace.to_string(),
+    };
+    Ok(machine_router_config(&router)?)
 }
 
 /// Open machine `me`'s router. Returns the session and its loopback endpoint (for the machine's

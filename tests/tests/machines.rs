@@ -39,25 +39,34 @@ fn certs(manifest: &Path) {
 }
 
 fn agent(net: &Net, i: usize, machine: &str, manifest: &Path, ns: &str) -> Proc {
-    let p = net.spawn(
-        i,
-        &bin("robocog"),
-        &[
-            "agent".into(),
-            manifest.display().to_string(),
-            "--machine".into(),
-            machine.into(),
-            "--namespace".into(),
-            ns.into(),
-            "--router".into(),
-            "tcp/127.0.0.1:0".into(),
-            "--state-root".into(),
-            scratch(ns)
-                .join(format!("state-{machine}"))
-                .display()
-                .to_string(),
-        ],
-    );
+    agent_with(net, i, machine, manifest, ns, &[])
+}
+
+fn agent_with(
+    net: &Net,
+    i: usize,
+    machine: &str,
+    manifest: &Path,
+    ns: &str,
+    extra: &[&str],
+) -> Proc {
+    let mut args: Vec<String> = vec![
+        "agent".into(),
+        manifest.display().to_string(),
+        "--machine".into(),
+        machine.into(),
+        "--namespace".into(),
+        ns.into(),
+        "--router".into(),
+        "tcp/127.0.0.1:0".into(),
+        "--state-root".into(),
+        scratch(ns)
+            .join(format!("state-{machine}"))
+            .display()
+            .to_string(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let p = net.spawn(i, &bin("robocog"), &args);
     p.lines
         .wait_for("the agent ready", Duration::from_secs(20), |l| {
             l.contains("ready: waiting for a launch") || l.starts_with("error")
@@ -177,6 +186,39 @@ fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off()
         robot.lines.all().join("\n")
     );
     assert_eq!(speech.lines.count(|l| l.contains("started talker")), 1);
+
+    // A component that crashes on the other machine is restarted there by its policy.
+    let line = speech
+        .lines
+        .wait_for("the talker's pid", Duration::from_secs(1), |l| {
+            l.contains("started talker (pid")
+        });
+    let pid: u32 = line
+        .split("(pid ")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .and_then(|s| s.parse().ok())
+        .expect("a pid");
+    robocog_tests::signal(pid, "KILL");
+    robot
+        .lines
+        .wait_for("the talker restarted", Duration::from_secs(10), |l| {
+            l.contains("talker stopped (killed by signal 9") && l.contains("restart 1/")
+        });
+    speech
+        .lines
+        .wait_until("a second talker", Duration::from_secs(10), |lines| {
+            lines
+                .iter()
+                .filter(|l| l.contains("started talker (pid"))
+                .count()
+                == 2
+        });
+    robot
+        .lines
+        .wait_for("the talker up again", Duration::from_secs(10), |l| {
+            l.contains("talker is up") && !l.contains(&format!("pid {pid},"))
+        });
 
     // Stopping the launch stops the other machine's components too; the agent stays for the
     // next launch.
@@ -498,4 +540,53 @@ fn the_touch_game_over_three_machines_survives_a_slow_lossy_network_and_a_lost_s
         1,
         "the speech machine's components were restarted"
     );
+}
+
+#[test]
+fn an_agent_stops_the_components_of_a_launcher_that_is_gone_for_good() {
+    let ns = unique_namespace("orphans");
+    let net = Net::new(2);
+    let dir = scratch(&ns);
+    let manifest = write_graph(&dir, &[net.ip(0), net.ip(1)], &["robot", "speech"], TALK);
+    certs(&manifest);
+    let speech = agent_with(
+        &net,
+        1,
+        "speech",
+        &manifest,
+        &ns,
+        &["--orphan-after-s", "2"],
+    );
+    let mut robot = launch(&net, 0, "robot", &manifest, &ns, &[]);
+    robot
+        .lines
+        .wait_for("the listener hearing", Duration::from_secs(30), |l| {
+            l.contains("received: hello 2")
+        });
+    // The launcher dies without a word: its local children die with it; the other machine's
+    // run on for the grace, then their agent stops them.
+    robocog_tests::signal(robot.child.id(), "KILL");
+    robot.wait_exit(Duration::from_secs(10));
+    speech.lines.wait_for(
+        "the agent noticing the launcher gone",
+        Duration::from_secs(10),
+        |l| l.contains("the launcher is out of reach"),
+    );
+    speech.lines.wait_for(
+        "the orphaned talker stopped",
+        Duration::from_secs(15),
+        |l| l.contains("the launcher has been gone 2 s: stopping its 1 component"),
+    );
+    speech
+        .lines
+        .wait_for("the talker exited", Duration::from_secs(10), |l| {
+            l.contains("talker exited")
+        });
+    // And a new launch is served by the same agent.
+    let robot = launch(&net, 0, "robot", &manifest, &ns, &[]);
+    robot
+        .lines
+        .wait_for("a new launch hearing", Duration::from_secs(30), |l| {
+            l.contains("received: hello 2")
+        });
 }
