@@ -19,17 +19,32 @@ pub async fn open_router(listen: &str) -> Result<(zenoh::Session, String), BusEr
             .insert_json5(key, &value)
             .map_err(|e| BusError::Config(format!("router {key}: {e}")))?;
     }
+    open_configured(config, listen).await
+}
+
+/// Open a router with `config` (listening on `listen`, among others). Returns the session and
+/// the TCP endpoint its clients on this host join: a loopback one when it has one.
+pub async fn open_configured(
+    config: zenoh::Config,
+    listen: &str,
+) -> Result<(zenoh::Session, String), BusError> {
     let session = zenoh::open(config).await.map_err(|e| BusError::Connect {
         endpoints: listen.to_string(),
         reason: format!("cannot start a router: {e}"),
     })?;
-    let endpoint = session
+    let tcp: Vec<String> = session
         .info()
         .locators()
         .await
         .into_iter()
         .map(|l| l.to_string())
-        .find(|l| l.starts_with("tcp/"))
+        .filter(|l| l.starts_with("tcp/"))
+        .collect();
+    let endpoint = tcp
+        .iter()
+        .find(|l| l.starts_with("tcp/127.") || l.starts_with("tcp/[::1]"))
+        .or_else(|| tcp.first())
+        .cloned()
         .ok_or_else(|| BusError::Config(format!("the router on {listen} has no TCP endpoint")))?;
     Ok((session, endpoint))
 }

@@ -169,13 +169,7 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
     say(&me.name, "ready: waiting for a launch");
 
     // The launcher's presence, for orphaned components.
-    let launcher_tokens = router
-        .liveliness()
-        .declare_subscriber(liveliness::components(&opts.namespace))
-        .history(true)
-        .with(zenoh::handlers::FifoChannel::new(1024))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot watch liveliness: {e}"))?;
+    let launcher_tokens = crate::supervisor::component_tokens(&router, &opts.namespace).await?;
     let (present_tx, mut present_rx) = watch::channel(false);
     {
         let ns = opts.namespace.clone();

@@ -126,22 +126,14 @@ pub async fn open_router(
     namespace: &str,
 ) -> anyhow::Result<(zenoh::Session, String)> {
     let config = router_config(manifest, me, local_listen, namespace)?;
-    let session = zenoh::open(config).await.map_err(|e| {
-        anyhow::anyhow!(
-            "cannot start machine {:?}'s router on {local_listen} and {}: {e}",
-            me.name,
-            me.router
-        )
-    })?;
-    let endpoint = session
-        .info()
-        .locators()
+    interfaces::router::open_configured(config, local_listen)
         .await
-        .into_iter()
-        .map(|l| l.to_string())
-        .find(|l| l.starts_with("tcp/127.") || l.starts_with("tcp/[::1]"))
-        .with_context(|| format!("the router on {local_listen} has no loopback endpoint"))?;
-    Ok((session, endpoint))
+        .with_context(|| {
+            format!(
+                "machine {:?}'s router on {local_listen} and {}",
+                me.name, me.router
+            )
+        })
 }
 
 #[cfg(test)]

@@ -289,13 +289,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     };
 
     // Components are up when their liveliness token appears.
-    let tokens = router
-        .liveliness()
-        .declare_subscriber(liveliness::components(&opts.namespace))
-        .history(true)
-        .with(zenoh::handlers::FifoChannel::new(1024))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot watch liveliness: {e}"))?;
+    let tokens = component_tokens(&router, &opts.namespace).await?;
     {
         let tx = tx.clone();
         let ns = opts.namespace.clone();
@@ -843,6 +837,22 @@ pub(crate) fn die_with_parent(cmd: &mut Command) {
             Ok(())
         });
     }
+}
+
+/// The component tokens of namespace `ns` as they come and go (those already there first).
+pub(crate) async fn component_tokens(
+    session: &zenoh::Session,
+    ns: &str,
+) -> anyhow::Result<
+    zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+> {
+    session
+        .liveliness()
+        .declare_subscriber(liveliness::components(ns))
+        .history(true)
+        .with(zenoh::handlers::FifoChannel::new(1024))
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot watch liveliness: {e}"))
 }
 
 /// What a process's exit runs.

@@ -1,7 +1,7 @@
 //! `robocog agent --machine <name> <manifest>`: run one machine's share of a graph.
 
 use crate::agent::{AgentOptions, run};
-use crate::manifest::{Manifest, Overrides};
+use crate::manifest::Overrides;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -34,27 +34,14 @@ pub struct Args {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let manifest = match Manifest::load(&args.manifest, &args.overrides) {
-        Ok(m) => m,
-        Err(problems) => {
-            eprintln!("{problems}");
-            return Ok(2);
-        }
-    };
-    if manifest.machines.is_empty() {
-        eprintln!(
-            "error: {} declares no [machines]: a graph of one machine needs no agent (robocog launch runs it)",
-            args.manifest.display()
-        );
+    let Some(manifest) = super::load_machines_manifest(
+        &args.manifest,
+        &args.overrides,
+        "a graph of one machine needs no agent (robocog launch runs it)",
+    ) else {
         return Ok(2);
-    }
-    let namespace = args
-        .namespace
-        .or_else(|| manifest.namespace.clone())
-        .unwrap_or_else(|| interfaces::args::DEFAULT_NAMESPACE.to_string());
-    if !interfaces::topic::is_valid_segment(&namespace) {
-        anyhow::bail!("invalid namespace {namespace:?}: use letters, digits, '_', '-'");
-    }
+    };
+    let namespace = super::namespace_of(args.namespace, &manifest)?;
     if !(args.orphan_after_s.is_finite() && args.orphan_after_s > 0.0) {
         anyhow::bail!("--orphan-after-s must be a positive number of seconds");
     }

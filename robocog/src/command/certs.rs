@@ -18,7 +18,7 @@
 //!     -extfile <(printf "subjectAltName=IP:10.0.0.2") -out robot.pem
 //! ```
 
-use crate::manifest::{Manifest, Overrides};
+use crate::manifest::Overrides;
 use anyhow::Context;
 use rcgen::{
     BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer, KeyPair,
@@ -78,20 +78,13 @@ fn validity(params: &mut CertificateParams, days: u32) {
 }
 
 pub fn execute(args: Args) -> anyhow::Result<i32> {
-    let manifest = match Manifest::load(&args.manifest, &args.overrides) {
-        Ok(m) => m,
-        Err(problems) => {
-            eprintln!("{problems}");
-            return Ok(2);
-        }
-    };
-    if manifest.machines.is_empty() {
-        eprintln!(
-            "error: {} declares no [machines]: a graph of one machine has no links to secure",
-            args.manifest.display()
-        );
+    let Some(manifest) = super::load_machines_manifest(
+        &args.manifest,
+        &args.overrides,
+        "a graph of one machine has no links to secure",
+    ) else {
         return Ok(2);
-    }
+    };
     let Some(out) = args.out.clone().or_else(|| manifest.certs.clone()) else {
         eprintln!(
             "error: say where the certificates go: --out, or certs in the manifest's [graph]"

@@ -1,6 +1,6 @@
 //! `robocog launch <manifest>`: run a graph.
 
-use crate::manifest::{Manifest, Overrides};
+use crate::manifest::Overrides;
 use crate::supervisor::{LaunchOptions, launch};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -66,12 +66,8 @@ pub(crate) fn default_state_root() -> PathBuf {
 }
 
 pub async fn execute(args: Args) -> anyhow::Result<i32> {
-    let manifest = match Manifest::load(&args.manifest, &args.overrides) {
-        Ok(m) => m,
-        Err(problems) => {
-            eprintln!("{problems}");
-            return Ok(2);
-        }
+    let Some(manifest) = super::load_manifest(&args.manifest, &args.overrides) else {
+        return Ok(2);
     };
     // The graph's structure only: a component whose files or devices are missing says so
     // itself at start (exit 78), and the launcher stops at once with its message.
@@ -86,13 +82,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             return Ok(2);
         }
     }
-    let namespace = args
-        .namespace
-        .or_else(|| manifest.namespace.clone())
-        .unwrap_or_else(|| interfaces::args::DEFAULT_NAMESPACE.to_string());
-    if !interfaces::topic::is_valid_segment(&namespace) {
-        anyhow::bail!("invalid namespace {namespace:?}: use letters, digits, '_', '-'");
-    }
+    let namespace = super::namespace_of(args.namespace, &manifest)?;
     let router = args
         .router
         .or_else(|| manifest.router.clone())
