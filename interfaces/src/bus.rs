@@ -147,18 +147,11 @@ pub struct BusOptions {
     pub clock: Clock,
 }
 
-/// Sensor streams (camera frames): the newest frame is what matters, so under congestion (a slow
-/// link to another machine) a frame is dropped rather than held up, and it yields to everything
-/// else in zenoh's queues (ROS' sensor-data QoS). Everything else is reliable and blocks.
+/// Sensor streams (camera frames) yield to everything else in zenoh's queues (ROS' sensor data
+/// goes at a lower priority than commands). They stay reliable: a frame is never dropped
+/// without a count (what crosses to another machine is thinned by the routers instead, see
+/// `router::machine_router_config`).
 const SENSOR_STREAMS: &[&str] = &["robocog.RgbdFrame"];
-
-fn congestion_control(type_name: &str) -> CongestionControl {
-    if SENSOR_STREAMS.contains(&type_name) {
-        CongestionControl::Drop
-    } else {
-        CongestionControl::Block
-    }
-}
 
 fn priority(type_name: &str) -> zenoh::qos::Priority {
     if SENSOR_STREAMS.contains(&type_name) {
@@ -334,7 +327,7 @@ impl Bus {
             .session
             .declare_publisher(key)
             .encoding(crate::raw::encoding_for(T::TYPE_NAME))
-            .congestion_control(congestion_control(T::TYPE_NAME))
+            .congestion_control(CongestionControl::Block)
             .priority(priority(T::TYPE_NAME))
             .await
             .map_err(zerr(format!("declaring a publisher on {name}")))?;

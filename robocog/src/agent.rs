@@ -8,6 +8,10 @@
 //! decision (start order across machines, restart policies, stopping dependents first); the
 //! agent runs processes and says what became of them.
 //!
+//! - It starts only what its own copy of the manifest places on its machine, exactly as the
+//!   manifest has it (binary, arguments, environment): a request that differs is refused with
+//!   both versions named, so a launcher with other `--set` values, or anything else on the bus,
+//!   cannot make it run something else.
 //! - A component's lines go to the launcher as `agent/events` (and to the agent's own log, so
 //!   the machine's journal has them too).
 //! - Its exit is reported with its wait status; the launcher decides whether to restart it.
@@ -19,7 +23,7 @@
 //! The agent is meant to run as a service (`robocog/systemd/robocog-agent@.service`), started
 //! before any launch: a launch waits for every machine's agent.
 
-use crate::manifest::{Manifest, resolve_binary};
+use crate::manifest::{Component, Manifest};
 use crate::supervisor::{BoxFuture, spawn_process};
 use interfaces::bus::{Bus, BusOptions, ServiceError};
 use interfaces::liveliness::{self, Token};
@@ -31,7 +35,7 @@ use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
 use std::collections::HashMap;
 use std::os::unix::process::ExitStatusExt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitStatus;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -77,6 +81,9 @@ struct Shared {
     events: mpsc::Sender<AgentEvent>,
     /// The launch whose components run here ("" before the first).
     launch_id: Mutex<String>,
+    /// The components this agent's own manifest places on its machine: the only ones it
+    /// starts, and only as its manifest says (binary, arguments, environment).
+    placed: HashMap<String, Component>,
 }
 
 fn say(machine: &str, msg: impl std::fmt::Display) {
@@ -147,6 +154,12 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
         running: Mutex::new(HashMap::new()),
         events: events_tx,
         launch_id: Mutex::new(String::new()),
+        placed: manifest
+            .components
+            .iter()
+            .filter(|c| c.machine.as_deref() == Some(me.name.as_str()))
+            .map(|c| (c.name.clone(), c.clone()))
+            .collect(),
     });
 
     // Events out, in order, from one task.
@@ -250,6 +263,10 @@ async fn handle(shared: &Arc<Shared>, req: AgentRequest) -> Result<AgentReply, S
         wait_status: -1,
         ..Default::default()
     };
+    // Nothing is touched for a start this agent would refuse.
+    if req.action == AgentAction::Start {
+        allowed(shared, &req)?;
+    }
     // A new launch takes the machine over: what an earlier one left is stopped first.
     let earlier = {
         let mut current = shared.launch_id.lock().unwrap_or_else(|p| p.into_inner());
@@ -327,12 +344,7 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
             req.component, r.pid, r.generation
         )));
     }
-    let binary = resolve_binary(&req.binary, Path::new(&req.dir)).ok_or_else(|| {
-        ServiceError::not_found(format!(
-            "machine {}: no binary {:?} (next to robocog, on PATH, or relative to {})",
-            shared.machine, req.binary, req.dir
-        ))
-    })?;
+    let (spec, binary) = allowed(shared, req)?;
     let connect = interfaces::ConnectArgs::to_router(&shared.local_endpoint, &shared.namespace);
     let mut env = connect.to_env();
     env.push(("ROBOCOG_COMPONENT".into(), req.component.clone()));
@@ -342,7 +354,7 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
         .join(&shared.namespace)
         .join(&req.component);
     env.push(("ROBOCOG_STATE_DIR".into(), state.display().to_string()));
-    env.extend(req.env.iter().map(|v| (v.name.clone(), v.value.clone())));
+    env.extend(spec.env.iter().map(|(k, v)| (k.clone(), v.clone())));
 
     let event = {
         let base = AgentEvent {
@@ -404,7 +416,7 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
             })
         }
     };
-    let spawned = spawn_process(&binary, &req.args, env, lines, on_exit)
+    let spawned = spawn_process(&binary, &spec.args, env, lines, on_exit)
         .map_err(|e| ServiceError::refused(format!("machine {}: {e:#}", shared.machine)))?;
     say(
         &shared.machine,
@@ -413,7 +425,7 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
             req.component,
             spawned.pid,
             binary.display(),
-            req.args.join(" ")
+            spec.args.join(" ")
         ),
     );
     shared
@@ -430,6 +442,46 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
             },
         );
     Ok(spawned.pid)
+}
+
+/// The component `req` asks to start as this agent's own manifest has it, and its binary; or
+/// why not.
+fn allowed<'s>(
+    shared: &'s Shared,
+    req: &AgentRequest,
+) -> Result<(&'s Component, PathBuf), ServiceError> {
+    // Only what this machine's own copy of the manifest places here, as it says: a launcher
+    // (or anything else on the bus) cannot make the agent run something else.
+    let Some(spec) = shared.placed.get(&req.component) else {
+        let mut here: Vec<&str> = shared.placed.keys().map(String::as_str).collect();
+        here.sort();
+        return Err(ServiceError::refused(format!(
+            "machine {}: this agent's manifest places no component {:?} here (it places: {})",
+            shared.machine,
+            req.component,
+            here.join(", ")
+        )));
+    };
+    let env: std::collections::BTreeMap<String, String> = req
+        .env
+        .iter()
+        .map(|v| (v.name.clone(), v.value.clone()))
+        .collect();
+    if spec.binary != req.binary || spec.args != req.args || spec.env != env {
+        return Err(ServiceError::refused(format!(
+            "machine {}: the launcher's manifest and this agent's differ for {}: {} {:?} there, {} {:?} here (give every machine the same manifest and the same --set and --profile)",
+            shared.machine, req.component, req.binary, req.args, spec.binary, spec.args
+        )));
+    }
+    let binary = spec.resolve_binary().ok_or_else(|| {
+        ServiceError::not_found(format!(
+            "machine {}: no binary {:?} (next to robocog, on PATH, or relative to {})",
+            shared.machine,
+            spec.binary,
+            spec.dir.display()
+        ))
+    })?;
+    Ok((spec, binary))
 }
 
 fn describe(status: Option<ExitStatus>) -> String {

@@ -388,6 +388,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     }
 
     let mut exit_code: Option<i32> = None;
+    let mut pending: VecDeque<Event> = VecDeque::new();
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     loop {
         // Start whatever has all its dependencies up.
@@ -421,9 +422,14 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         if exit_code.is_some() {
             break;
         }
-        let event = tokio::select! {
-            e = rx.recv() => e,
-            _ = tick.tick() => None,
+        // Events the loop made itself first (never sent into its own channel, which could be
+        // full), then the channel.
+        let event = match pending.pop_front() {
+            Some(e) => Some(e),
+            None => tokio::select! {
+                e = rx.recv() => e,
+                _ = tick.tick() => None,
+            },
         };
         match event {
             Some(Event::Up { name, pid }) => {
@@ -448,6 +454,13 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     continue;
                 };
                 if c.generation != generation {
+                    continue;
+                }
+                // A remote exit can be heard twice (its event, and the status of a machine that
+                // came back): once handled, it is done.
+                if c.remote.is_some()
+                    && matches!(c.state, State::Backoff | State::Failed | State::Exited)
+                {
                     continue;
                 }
                 let what = describe_status(status);
@@ -588,13 +601,11 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     AgentEventKind::Exited => {
                         let status =
                             (e.wait_status >= 0).then(|| ExitStatus::from_raw(e.wait_status));
-                        let _ = tx
-                            .send(Event::Exited {
-                                name: e.component,
-                                generation: e.generation,
-                                status,
-                            })
-                            .await;
+                        pending.push_back(Event::Exited {
+                            name: e.component,
+                            generation: e.generation,
+                            status,
+                        });
                     }
                 }
             }
@@ -692,13 +703,11 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                             c.state = State::Starting {
                                 deadline: Instant::now() + c.spec.ready_timeout,
                             };
-                            let _ = tx
-                                .send(Event::Exited {
-                                    name: c.spec.name.clone(),
-                                    generation: c.generation,
-                                    status: None,
-                                })
-                                .await;
+                            pending.push_back(Event::Exited {
+                                name: c.spec.name.clone(),
+                                generation: c.generation,
+                                status: None,
+                            });
                         }
                     }
                 }

@@ -187,6 +187,65 @@ fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off()
     );
     assert_eq!(speech.lines.count(|l| l.contains("started talker")), 1);
 
+    // An agent starts only what its own manifest places on its machine, as it has it: a request
+    // for anything else, from anywhere on the bus, is refused and changes nothing.
+    let router = robot
+        .lines
+        .wait_for("the robot's router", Duration::from_secs(1), |l| {
+            l.contains(": router tcp/")
+        });
+    let endpoint = router
+        .split("router ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .expect("an endpoint")
+        .to_string();
+    let marker = dir.join("should-not-exist");
+    for (component, binary, args) in [
+        (
+            "evil",
+            "sh",
+            vec!["-c".to_string(), format!("touch {}", marker.display())],
+        ),
+        (
+            "talker",
+            "sh",
+            vec!["-c".to_string(), format!("touch {}", marker.display())],
+        ),
+    ] {
+        let request = serde_json::json!({
+            "header": {"stamp_ns": 0, "seq": 0, "frame_id": ""},
+            "launch_id": "someone-else", "graph": "split", "action": "Start",
+            "component": component, "generation": 1, "binary": binary, "dir": "/",
+            "args": args, "env": [], "stop_timeout_ms": 0,
+        });
+        let mut call = net.spawn(
+            0,
+            &bin("robocog"),
+            &[
+                "service".into(),
+                "call".into(),
+                "agent/speech/control".into(),
+                request.to_string(),
+                "--namespace".into(),
+                ns.clone(),
+                "--connect".into(),
+                endpoint.clone(),
+            ],
+        );
+        let status = call.wait_exit(Duration::from_secs(20));
+        let said = call.lines.all().join("\n");
+        assert!(!status.success(), "{said}");
+        assert!(
+            said.contains("places no component \"evil\"")
+                || said.contains("the launcher's manifest and this agent's differ for talker"),
+            "{said}"
+        );
+    }
+    assert!(!marker.exists());
+    assert_eq!(speech.lines.count(|l| l.contains("started talker")), 1);
+    assert_eq!(speech.lines.count(|l| l.contains("a new launch")), 0);
+
     // A component that crashes on the other machine is restarted there by its policy.
     let line = speech
         .lines

@@ -39,11 +39,11 @@ pub struct AgentRequest {
     pub component: String,
     /// The launcher's count of this component's starts; events carry it back.
     pub generation: u64,
-    /// As the manifest wrote it: a name found next to `robocog` or on PATH, or a path relative
-    /// to `dir`.
+    /// The binary, arguments and environment as the launcher's manifest has them. The agent
+    /// starts the component as its own copy of the manifest has it, and refuses a request that
+    /// differs (or names a component its manifest does not place on its machine).
     pub binary: String,
-    /// The folder of the manifest that declared the component, on the launcher's machine (the
-    /// same checkout is expected on every machine for relative paths).
+    /// The folder of the launcher's manifest (for the messages).
     pub dir: String,
     pub args: Vec<String>,
     pub env: Vec<EnvVar>,
