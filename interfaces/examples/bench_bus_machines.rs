@@ -3,10 +3,11 @@
 //! The script makes two network namespaces joined by a veth pair (machines A and B) and runs
 //! this one binary in them with a role each:
 //!
-//! - `--role router`: one machine's zenoh router, as `robocog/src/machines.rs` configures it:
+//! - `--role router`: one machine's zenoh router, configured as `robocog launch` and `robocog
+//!   agent` configure it (`interfaces::router::machine_router_config`):
 //!   listens on loopback for its components and on the machine's endpoint (`tcp/` or `tls/`
 //!   `<ip>:<port>`) for the other router, and dials the other machine's endpoint. With
-//!   `--tls-dir`, mutual TLS and the graph's access control, the same keys as `router_config`.
+//!   `--tls-dir`, mutual TLS and the graph's access control.
 //!   Prints `ready` once it listens, then runs until killed (or `--max-secs`).
 //! - `--role echo` (machine B, a client of B's router): sends every `Ping` of `bench/ping` back
 //!   on `bench/pong`, counts the `Counter64` of `bench/count` and reports (count, time from the
@@ -37,9 +38,6 @@ use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// Where the echo reports what it counted: `sent_ns` = ns from the first to the last message,
-/// `data` = the count (u64, little endian).
-const COUNT_REPORT: &str = "bench/count_report";
 /// The payload sizes of the latency rows, with their labels (table, JSON keys).
 const SIZES: [(&str, &str, usize); 3] = [
     ("64 B", "64b", 64),
@@ -205,7 +203,7 @@ async fn echo(cli: &Cli) -> anyhow::Result<()> {
     let counts = bus
         .subscriber_named::<Counter64>(topics::BENCH_COUNT.name(), 65536)
         .await?;
-    let report = bus.publisher_named::<Ping>(COUNT_REPORT).await?;
+    let report = bus.publisher(&topics::BENCH_COUNT_REPORT).await?;
     let expected = cli.messages();
     let pinger = tokio::spawn(async move {
         while let Ok(mut m) = pings.recv().await {
@@ -290,7 +288,7 @@ async fn probe(cli: &Cli) -> anyhow::Result<()> {
         back: bus.subscriber(&topics::BENCH_PONG).await?,
         seq: 0,
     };
-    let reports = bus.subscriber_named::<Ping>(COUNT_REPORT, 16).await?;
+    let reports = bus.subscriber(&topics::BENCH_COUNT_REPORT).await?;
 
     // The routers join each other and learn the echo's subscription: ping until it answers.
     let t0 = Instant::now();

@@ -147,20 +147,6 @@ pub struct BusOptions {
     pub clock: Clock,
 }
 
-/// Sensor streams (camera frames) yield to everything else in zenoh's queues (ROS' sensor data
-/// goes at a lower priority than commands). They stay reliable: a frame is never dropped
-/// without a count (what crosses to another machine is thinned by the routers instead, see
-/// `router::machine_router_config`).
-const SENSOR_STREAMS: &[&str] = &["robocog.RgbdFrame"];
-
-fn priority(type_name: &str) -> zenoh::qos::Priority {
-    if SENSOR_STREAMS.contains(&type_name) {
-        zenoh::qos::Priority::DataLow
-    } else {
-        zenoh::qos::Priority::Data
-    }
-}
-
 impl Bus {
     /// Join the bus as component `component` (its liveliness token is declared).
     pub async fn open(args: &ConnectArgs, component: &str) -> Result<Bus, BusError> {
@@ -328,7 +314,6 @@ impl Bus {
             .declare_publisher(key)
             .encoding(crate::raw::encoding_for(T::TYPE_NAME))
             .congestion_control(CongestionControl::Block)
-            .priority(priority(T::TYPE_NAME))
             .await
             .map_err(zerr(format!("declaring a publisher on {name}")))?;
         let token = self

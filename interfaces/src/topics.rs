@@ -39,6 +39,9 @@ pub fn is_valid_machine(machine: &str) -> bool {
 pub const BENCH_PING: Topic<std_msgs::Ping> = Topic::new("bench/ping");
 pub const BENCH_PONG: Topic<std_msgs::Ping> = Topic::new("bench/pong");
 pub const BENCH_COUNT: Topic<std_msgs::Counter64> = Topic::new("bench/count");
+/// What the receiving end of the throughput probe counted: `sent_ns` = ns from the first to the
+/// last message, `data` = the count (u64, little endian).
+pub const BENCH_COUNT_REPORT: Topic<std_msgs::Ping> = Topic::new("bench/count_report");
 pub const BENCH_FRAME: Topic<crate::msg::vision::RgbdFrame> = Topic::new("bench/frame");
 pub const BENCH_FRAME_BACK: Topic<crate::msg::vision::RgbdFrame> = Topic::new("bench/frame_back");
 
