@@ -142,15 +142,12 @@ async fn router(cli: &Cli) -> anyhow::Result<()> {
     let [local_listen, endpoint] = cli.listen.as_slice() else {
         anyhow::bail!("--listen takes two endpoints: loopback, then the machine's");
     };
-    let tls = cli.tls_dir.as_ref().map(|dir| TlsFiles {
-        ca: dir.join("ca.pem"),
-        cert: dir.join(format!("{}.pem", cli.machine)),
-        key: dir.join(format!("{}.key", cli.machine)),
-    });
-    if let Some(t) = &tls {
-        for p in [&t.ca, &t.cert, &t.key] {
-            anyhow::ensure!(p.is_file(), "missing {}", p.display());
-        }
+    let tls = cli
+        .tls_dir
+        .as_ref()
+        .map(|dir| TlsFiles::in_folder(dir, &cli.machine));
+    if let Some(p) = tls.as_ref().and_then(|t| t.missing().first().copied()) {
+        bail!("missing {}", p.display());
     }
     // The configuration `robocog launch` and `robocog agent` give a machine's router.
     let mut config = machine_router_config(&MachineRouter {

@@ -67,6 +67,27 @@ pub struct TlsFiles {
     pub key: std::path::PathBuf,
 }
 
+impl TlsFiles {
+    /// Machine `machine`'s files in a graph's certificate folder: `ca.pem`, `<machine>.pem`,
+    /// `<machine>.key` (what `robocog certs` writes).
+    pub fn in_folder(folder: &std::path::Path, machine: &str) -> Self {
+        Self {
+            ca: folder.join("ca.pem"),
+            cert: folder.join(format!("{machine}.pem")),
+            key: folder.join(format!("{machine}.key")),
+        }
+    }
+
+    /// The files that are not there.
+    pub fn missing(&self) -> Vec<&std::path::Path> {
+        [&self.ca, &self.cert, &self.key]
+            .into_iter()
+            .filter(|p| !p.is_file())
+            .map(|p| p.as_path())
+            .collect()
+    }
+}
+
 /// One machine's router in a graph over several machines.
 #[derive(Debug, Clone)]
 pub struct MachineRouter {

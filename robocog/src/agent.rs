@@ -24,7 +24,7 @@
 //! before any launch: a launch waits for every machine's agent.
 
 use crate::manifest::{Component, Manifest};
-use crate::supervisor::{BoxFuture, spawn_process};
+use crate::supervisor::{BoxFuture, describe_status, spawn_process};
 use interfaces::bus::{Bus, BusOptions, ServiceError};
 use interfaces::liveliness::{self, Token};
 use interfaces::msg::agent::{
@@ -403,7 +403,7 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
                 }
                 say(
                     &shared.machine,
-                    format!("{name} exited ({})", describe(status)),
+                    format!("{name} exited ({})", describe_status(status)),
                 );
                 let _ = shared
                     .events
@@ -482,17 +482,6 @@ fn allowed<'s>(
         ))
     })?;
     Ok((spec, binary))
-}
-
-fn describe(status: Option<ExitStatus>) -> String {
-    match status {
-        None => "status unknown".into(),
-        Some(s) => match (s.code(), s.signal()) {
-            (Some(c), _) => format!("exit code {c}"),
-            (None, Some(sig)) => format!("killed by signal {sig}"),
-            _ => "exited".into(),
-        },
-    }
 }
 
 /// SIGTERM to `name`'s process group, SIGKILL after `grace`; the raw wait status (-1: nothing

@@ -182,8 +182,7 @@ pub fn check(
             Ok(me) => {
                 if me.is_tls()
                     && let Some(folder) = &manifest.certs
-                    && let Err(e) =
-                        crate::machines::MachineCerts::in_folder(folder, &me.name).check(&me.name)
+                    && let Err(e) = crate::machines::machine_certs(folder, &me.name)
                 {
                     problems.push(Problem {
                         origin: me.origin.clone(),

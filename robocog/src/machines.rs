@@ -25,40 +25,24 @@
 use crate::manifest::{Machine, Manifest};
 use anyhow::{Context, bail};
 use interfaces::router::{MachineRouter, TlsFiles, machine_router_config};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-/// The certificate files of one machine in a graph's `certs` folder.
-#[derive(Debug, Clone)]
-pub struct MachineCerts {
-    pub ca: PathBuf,
-    pub cert: PathBuf,
-    pub key: PathBuf,
-}
-
-impl MachineCerts {
-    pub fn in_folder(folder: &Path, machine: &str) -> Self {
-        Self {
-            ca: folder.join("ca.pem"),
-            cert: folder.join(format!("{machine}.pem")),
-            key: folder.join(format!("{machine}.key")),
-        }
+/// Machine `machine`'s certificate files in `folder`, or an error naming the missing ones and
+/// how to make them.
+pub fn machine_certs(folder: &Path, machine: &str) -> anyhow::Result<TlsFiles> {
+    let files = TlsFiles::in_folder(folder, machine);
+    let missing: Vec<String> = files
+        .missing()
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "machine {machine:?} has no certificate: missing {} (robocog certs <manifest> makes the graph's CA and one certificate per machine)",
+            missing.join(", ")
+        );
     }
-
-    /// Every file there, or an error naming the missing ones and how to make them.
-    pub fn check(&self, machine: &str) -> anyhow::Result<()> {
-        let missing: Vec<String> = [&self.ca, &self.cert, &self.key]
-            .into_iter()
-            .filter(|p| !p.is_file())
-            .map(|p| p.display().to_string())
-            .collect();
-        if !missing.is_empty() {
-            bail!(
-                "machine {machine:?} has no certificate: missing {} (robocog certs <manifest> makes the graph's CA and one certificate per machine)",
-                missing.join(", ")
-            );
-        }
-        Ok(())
-    }
+    Ok(files)
 }
 
 /// The machine `name` of `manifest`, or an error listing those there are.
@@ -91,13 +75,7 @@ pub fn router_config(
             .certs
             .as_deref()
             .context("TLS between machines needs [graph] certs")?;
-        let certs = MachineCerts::in_folder(folder, &me.name);
-        certs.check(&me.name)?;
-        Some(TlsFiles {
-            ca: certs.ca,
-            cert: certs.cert,
-            key: certs.key,
-        })
+        Some(machine_certs(folder, &me.name)?)
     } else {
         None
     };

@@ -170,7 +170,7 @@ fn say(msg: impl std::fmt::Display) {
     eprintln!("robocog | {msg}");
 }
 
-fn describe_status(status: Option<ExitStatus>) -> String {
+pub(crate) fn describe_status(status: Option<ExitStatus>) -> String {
     use std::os::unix::process::ExitStatusExt;
     match status {
         None => "exit status unknown".into(),

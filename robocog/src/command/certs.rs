@@ -125,10 +125,8 @@ pub fn execute(args: Args) -> anyhow::Result<i32> {
     };
 
     for m in &manifest.machines {
-        let (cert_path, key_path) = (
-            out.join(format!("{}.pem", m.name)),
-            out.join(format!("{}.key", m.name)),
-        );
+        let files = interfaces::router::TlsFiles::in_folder(&out, &m.name);
+        let (cert_path, key_path) = (files.cert, files.key);
         if cert_path.is_file() && key_path.is_file() && !args.renew {
             eprintln!("machine {}: keeping {}", m.name, cert_path.display());
             continue;
