@@ -32,7 +32,7 @@ use tokio::process::Command;
 use tokio::sync::{mpsc, watch};
 
 use crate::agent::{AGENT_PREFIX, LAUNCHER_NAME};
-use interfaces::bus::Bus;
+use interfaces::bus::{Bus, CallError};
 use interfaces::msg::agent::{
     AgentAction, AgentChild, AgentEvent, AgentEventKind, AgentRequest, EnvVar,
 };
@@ -62,6 +62,34 @@ fn agent_request(m: &Machines, action: AgentAction, c: &Child) -> AgentRequest {
         ..Default::default()
     }
 }
+
+/// Call machine `machine`'s agent, waiting at most `timeout` in all. An agent whose token has
+/// just reached the launcher may not be reachable by queries yet: when a link between routers
+/// comes back, the routers hear of each other's tokens before they have routes for queries, so a
+/// call finds nobody for a moment (seen after a pulled cable). Such calls are sent again until
+/// the time-out; any other failure is final.
+async fn call_agent(
+    bus: &Bus,
+    machine: &str,
+    request: &AgentRequest,
+    timeout: Duration,
+) -> Result<interfaces::msg::agent::AgentReply, String> {
+    let control = interfaces::topics::agent_control(machine)
+        .ok_or_else(|| format!("invalid machine name {machine:?}"))?;
+    let deadline = Instant::now() + timeout;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match bus.call(&control, request, left).await {
+            Err(CallError::NoServer(_)) if Instant::now() + AGENT_CALL_RETRY < deadline => {
+                tokio::time::sleep(AGENT_CALL_RETRY).await
+            }
+            other => return other.map_err(|e| format!("machine {machine}'s agent: {e}")),
+        }
+    }
+}
+
+/// How long a call to an agent that nobody served waits before it is sent again.
+const AGENT_CALL_RETRY: Duration = Duration::from_millis(100);
 
 /// How `launch` runs.
 #[derive(Debug, Clone)]
@@ -634,14 +662,9 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     };
                     let tx = tx.clone();
                     tokio::spawn(async move {
-                        let running = match interfaces::topics::agent_control(&machine) {
-                            Some(control) => bus
-                                .call(&control, &request, Duration::from_secs(5))
-                                .await
-                                .map(|r| r.running)
-                                .map_err(|e| e.to_string()),
-                            None => Err("invalid machine name".into()),
-                        };
+                        let running = call_agent(&bus, &machine, &request, Duration::from_secs(10))
+                            .await
+                            .map(|r| r.running);
                         let _ = tx.send(Event::Reconciled { machine, running }).await;
                     });
                 }
@@ -677,7 +700,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     Ok(r) => r,
                     Err(why) => {
                         say(format!(
-                            "machine {machine}'s agent did not say what runs there ({why}); its components count as stopped"
+                            "{why}: it did not say what runs on machine {machine}; its components there count as stopped"
                         ));
                         Vec::new()
                     }
@@ -1017,14 +1040,9 @@ fn spawn_remote(c: &mut Child, ms: &Machines, tx: &mpsc::Sender<Event>) {
     let name = c.spec.name.clone();
     let generation = c.generation;
     tokio::spawn(async move {
-        let result = match interfaces::topics::agent_control(&machine) {
-            Some(control) => bus
-                .call(&control, &request, Duration::from_secs(10))
-                .await
-                .map(|r| r.pid)
-                .map_err(|e| format!("machine {machine}'s agent: {e}")),
-            None => Err(format!("invalid machine name {machine:?}")),
-        };
+        let result = call_agent(&bus, &machine, &request, Duration::from_secs(10))
+            .await
+            .map(|r| r.pid);
         let _ = tx
             .send(Event::RemoteStarted {
                 name,
@@ -1091,11 +1109,8 @@ async fn stop_all(
                             ));
                             return;
                         }
-                        let Some(control) = interfaces::topics::agent_control(&machine) else {
-                            return;
-                        };
-                        if let Err(e) = bus.call(&control, &request, wait).await {
-                            say(format!("cannot stop {name} on machine {machine}: {e}"));
+                        if let Err(e) = call_agent(&bus, &machine, &request, wait).await {
+                            say(format!("cannot stop {name}: {e}"));
                         }
                     }));
                 }
