@@ -116,6 +116,23 @@ need_browser() {
   fi
 }
 
+# The ROS 2 decoders the recording tests read robocog's MCAP files with, as tools outside the
+# project would: mcap, mcap-ros2-support and rosbags from PyPI, pinned, in a Python venv outside
+# the clone. Exports ROBOCOG_ROS2_PYTHON, that venv's python. Idempotent.
+need_ros2_decoders() {
+  local pins="mcap==1.6.0 mcap-ros2-support==0.6.0 rosbags==0.11.9"
+  local venv="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/ros2-decoders-$(echo "$pins" | cksum | cut -d' ' -f1)"
+  if [ ! -x "$venv/bin/python" ] || [ ! -f "$venv/.installed" ]; then
+    need_debs python3-venv
+    step "installing the ROS 2 decoders ($pins) into $venv"
+    python3 -m venv "$venv"
+    # shellcheck disable=SC2086
+    "$venv/bin/pip" install --quiet --disable-pip-version-check $pins
+    touch "$venv/.installed"
+  fi
+  export ROBOCOG_ROS2_PYTHON="$venv/bin/python"
+}
+
 # The `rerun` command line of the rerun-sdk Python package, at the exact version of the `rerun`
 # crate the viewer component links (components/viewer/Cargo.toml), for the viewer's tests
 # (`rerun rrd verify`, `rerun rrd print`) and for watching a game (`rerun` is the viewer

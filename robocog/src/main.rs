@@ -25,6 +25,8 @@ enum Verb {
     Topic(command::topic::Args),
     /// List, describe or call the services of a running graph.
     Service(command::service::Args),
+    /// The ROS 2 definitions of the message types: list, show, or export as a package.
+    Interface(command::interface::Args),
     /// List the live components of a running graph.
     Component(command::component::Args),
     /// Record the topics of a running graph into an MCAP file.
@@ -41,6 +43,15 @@ fn main() -> ExitCode {
     interfaces::node::init_logging_with("info,zenoh=error");
     if let Verb::Check(args) = cli.verb {
         return ExitCode::from(command::check::execute(args) as u8);
+    }
+    if let Verb::Interface(args) = cli.verb {
+        return match command::interface::execute(args) {
+            Ok(code) => ExitCode::from(code.clamp(0, 255) as u8),
+            Err(e) => {
+                eprintln!("error: {e:#}");
+                ExitCode::FAILURE
+            }
+        };
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -64,7 +75,7 @@ fn main() -> ExitCode {
             Verb::Record(a) => command::record::execute(a).await,
             Verb::Replay(a) => command::replay::execute(a).await,
             Verb::View(a) => command::view::execute(a).await,
-            Verb::Check(_) => Ok(0),
+            Verb::Check(_) | Verb::Interface(_) => Ok(0),
         }
     });
     match result {

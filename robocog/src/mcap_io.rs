@@ -6,11 +6,15 @@
 //!   (`vision/ball`, not the zenoh key), its `message_encoding` is `cdr`, and its metadata holds
 //!   the type name under [`TYPE_KEY`] and the namespace it was recorded from under
 //!   [`NAMESPACE_KEY`].
-//! - One **schema** per message type, named by the type name (`robocog.body.JointStates`). Its
-//!   encoding is [`SCHEMA_ENCODING`], a robocog-specific encoding (the MCAP spec allows custom
-//!   ones; none of the well-known ones fits, see [`schema_data`]): a JSON document giving the
-//!   type's field names, order and default values. It describes the shape of the messages for a
-//!   reader; it is not a machine-readable CDR definition.
+//! - One **schema** per message type, as ROS 2's tools expect it (rosbag2's convention): named
+//!   `robocog_msgs/msg/<Type>`, encoding [`ROS2_SCHEMA_ENCODING`] (`ros2msg`), its data the
+//!   type's full ROS 2 definition with the messages it uses ([`ros_msgs`], written from the
+//!   Rust types). Foxglove, `mcap-ros2-support` and `rosbags` decode these channels. A type no
+//!   ROS 2 message can describe (an enum carrying data) keeps robocog's own schema instead:
+//!   named by the type name, encoding [`SCHEMA_ENCODING`], a JSON document giving the type's
+//!   field names, order and default values (see [`schema_data`]); it describes the shape for a
+//!   reader, not a machine-readable CDR definition. Files written before the ROS 2 schemas
+//!   have only these, and replay the same: what replay reads is the channel's metadata.
 //! - One **message** per sample, its data exactly the bytes that were on the bus: CDR
 //!   little-endian with the 4-byte encapsulation header `00 01 00 00`, as ROS 2 records. So a
 //!   replay publishes identical bytes, and components decode them unchanged.
@@ -36,8 +40,11 @@ use std::path::Path;
 
 /// The `message_encoding` of every channel: CDR with its encapsulation header.
 pub const MESSAGE_ENCODING: &str = "cdr";
-/// The encoding of the schemas: a JSON document describing the shape of a robocog message type
-/// (`{"type", "codec", "example"}`, see [`schema_data`]).
+/// The encoding of the schemas of the types ROS 2 can describe: a ROS 2 `.msg` definition with
+/// its dependencies.
+pub const ROS2_SCHEMA_ENCODING: &str = "ros2msg";
+/// The encoding of the schemas of the other types: a JSON document describing the shape of a
+/// robocog message type (`{"type", "codec", "example"}`, see [`schema_data`]).
 pub const SCHEMA_ENCODING: &str = "robocog.msg-shape+json";
 /// Channel metadata key holding the message type name.
 pub const TYPE_KEY: &str = "robocog.type";
@@ -48,7 +55,20 @@ pub const METADATA_NAME: &str = "robocog.record";
 /// The `profile` of the file header.
 pub const PROFILE: &str = "robocog";
 
-/// The schema data of a message type: JSON with the type name, how its payload is encoded and
+/// The schema of a message type: its name, encoding and data (see the module's documentation).
+pub fn schema_for(type_name: &str) -> (String, &'static str, Vec<u8>) {
+    let defs = ros_msgs::definitions();
+    match (defs.ros_name(type_name), defs.full_definition(type_name)) {
+        (Ok(name), Ok(text)) => (name, ROS2_SCHEMA_ENCODING, text.into_bytes()),
+        _ => (
+            type_name.to_string(),
+            SCHEMA_ENCODING,
+            schema_data(type_name),
+        ),
+    }
+}
+
+/// The robocog schema data of a message type: JSON with the type name, how its payload is encoded and
 /// the JSON of its default value from the registry (field names, order, nesting, default values).
 /// For a type this build does not know, `example` is `null`.
 pub fn schema_data(type_name: &str) -> Vec<u8> {
@@ -141,9 +161,8 @@ impl RecordWriter {
         let schema = match self.schemas.get(type_name) {
             Some(&id) => id,
             None => {
-                let id =
-                    self.writer
-                        .add_schema(type_name, SCHEMA_ENCODING, &schema_data(type_name))?;
+                let (name, encoding, data) = schema_for(type_name);
+                let id = self.writer.add_schema(&name, encoding, &data)?;
                 self.schemas.insert(type_name.to_string(), id);
                 id
             }
@@ -862,10 +881,60 @@ mod tests {
         let bytes = std::fs::read(&p).unwrap();
         let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
         let schema = summary.schemas.values().next().unwrap();
-        assert_eq!(schema.name, "robocog.Text");
-        assert_eq!(schema.encoding, SCHEMA_ENCODING);
-        let doc: serde_json::Value = serde_json::from_slice(&schema.data).unwrap();
-        assert_eq!(doc["example"]["text"], "");
+        assert_eq!(schema.name, "robocog_msgs/msg/Text");
+        assert_eq!(schema.encoding, ROS2_SCHEMA_ENCODING);
+        let text = std::str::from_utf8(&schema.data).unwrap();
+        assert!(
+            text.starts_with("robocog_msgs/Header header\nstring text\n"),
+            "{text}"
+        );
+        assert!(text.contains("\nMSG: robocog_msgs/Header\n"), "{text}");
+    }
+
+    /// Recordings made before the ROS 2 schemas (robocog's shape schema, named by the type) read
+    /// as they did: the type comes from the channel's metadata, or else the schema's name.
+    #[test]
+    fn recordings_of_the_earlier_layout_still_read_with_their_types() {
+        let p = tmp("earlier.mcap");
+        {
+            let file = BufWriter::new(File::create(&p).unwrap());
+            let mut w = mcap::WriteOptions::new()
+                .compression(None)
+                .profile(PROFILE)
+                .create(file)
+                .unwrap();
+            let schema = w
+                .add_schema(
+                    "robocog.Text",
+                    SCHEMA_ENCODING,
+                    &schema_data("robocog.Text"),
+                )
+                .unwrap();
+            let with_meta = BTreeMap::from([(TYPE_KEY.to_string(), "robocog.Text".to_string())]);
+            let a = w
+                .add_channel(schema, "chatter", MESSAGE_ENCODING, &with_meta)
+                .unwrap();
+            let b = w
+                .add_channel(schema, "other", MESSAGE_ENCODING, &BTreeMap::new())
+                .unwrap();
+            for (i, ch) in [a, b].into_iter().enumerate() {
+                let header = mcap::records::MessageHeader {
+                    channel_id: ch,
+                    sequence: i as u32,
+                    log_time: 10 + i as u64,
+                    publish_time: 10 + i as u64,
+                };
+                w.write_to_known_channel(&header, &text(i as u64, 10, "old"))
+                    .unwrap();
+            }
+            w.finish().unwrap();
+        }
+        let got: Vec<Recorded> = RecordingReader::open(&p)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .collect();
+        assert_eq!(got.len(), 2);
+        assert!(got.iter().all(|m| m.type_name == "robocog.Text"), "{got:?}");
     }
 
     #[test]

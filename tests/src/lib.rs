@@ -471,11 +471,13 @@ pub fn read_recording(path: &Path) -> (mcap::Summary, Vec<Rec>, BTreeMap<String,
             let m = m.unwrap();
             Rec {
                 topic: m.channel.topic.clone(),
+                // The robocog type, as replay reads it (the schema is named by the ROS 2 type).
                 type_name: m
                     .channel
-                    .schema
-                    .as_ref()
-                    .map(|s| s.name.clone())
+                    .metadata
+                    .get("robocog.type")
+                    .cloned()
+                    .or_else(|| m.channel.schema.as_ref().map(|s| s.name.clone()))
                     .unwrap_or_default(),
                 log_time: m.log_time,
                 publish_time: m.publish_time,

@@ -170,12 +170,16 @@ args = ["--role", "talker", "--rate", "20"]
         let ch = channels[topic];
         assert_eq!(ch.message_encoding, "cdr");
         assert_eq!(ch.metadata["robocog.type"], type_name);
+        // The schema is the type's ROS 2 definition, as rosbag2 writes it.
         let schema = ch.schema.as_ref().unwrap();
-        assert_eq!(schema.name, type_name);
-        assert_eq!(schema.encoding, "robocog.msg-shape+json");
-        let shape: serde_json::Value = serde_json::from_slice(&schema.data).unwrap();
-        assert_eq!(shape["type"], type_name);
-        assert!(shape["example"]["header"].is_object(), "{shape}");
+        assert_eq!(
+            schema.name,
+            ros_msgs::definitions().ros_name(type_name).unwrap()
+        );
+        assert_eq!(schema.encoding, "ros2msg");
+        let text = std::str::from_utf8(&schema.data).unwrap();
+        assert!(text.starts_with("robocog_msgs/Header header\n"), "{text}");
+        assert!(text.contains("MSG: robocog_msgs/Header\n"), "{text}");
         assert_eq!(meta[&format!("dropped/{topic}")], "0");
     }
     assert_eq!(meta["namespace"], ns);

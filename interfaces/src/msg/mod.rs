@@ -117,6 +117,12 @@ fn example_json<T: Message>() -> serde_json::Value {
     serde_json::to_value(T::default()).unwrap_or(serde_json::Value::Null)
 }
 
+/// Something done with every message type, as a type (for what needs the type itself rather than
+/// the registry's functions, such as tracing its serde format to describe it to other tools).
+pub trait TypeVisitor {
+    fn visit<T: Message>(&mut self);
+}
+
 macro_rules! messages {
     ($($ty:ty => $name:literal),* $(,)?) => {
         $(
@@ -136,6 +142,11 @@ macro_rules! messages {
                 reply_to_json: cdr_reply_to_json::<$ty>,
             }),*
         ];
+
+        /// Call `visitor` with every message type of this build, in the order of [`REGISTRY`].
+        pub fn visit_types(visitor: &mut impl TypeVisitor) {
+            $(visitor.visit::<$ty>();)*
+        }
     };
 }
 

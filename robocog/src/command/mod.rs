@@ -13,6 +13,7 @@ pub mod agent;
 pub mod certs;
 pub mod check;
 pub mod component;
+pub mod interface;
 pub mod launch;
 pub mod record;
 pub mod replay;

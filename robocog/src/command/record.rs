@@ -17,10 +17,13 @@ use std::time::{Duration, Instant};
 /// What `robocog record --help` prints after the flags.
 const ABOUT: &str = "\
 One channel per topic (its robocog name), message encoding `cdr`, one schema per message type\n\
-(named by the type, e.g. robocog.body.JointStates; encoding `robocog.msg-shape+json`, the\n\
-JSON shape of the type). Payloads are the exact bytes of the bus (CDR with its 4-byte\n\
-encapsulation header); log_time is the receive time, publish_time the message header's stamp,\n\
-sequence its seq. Topics that appear while recording are picked up.\n\
+as ROS 2 tools read it (rosbag2's convention: named robocog_msgs/msg/<Type>, encoding\n\
+`ros2msg`, the full .msg definition; see `robocog interface`), so Foxglove, mcap-ros2-support\n\
+and rosbags decode the file. A type ROS 2 cannot describe (the deep representation's tagged\n\
+unions) gets robocog's own schema (`robocog.msg-shape+json`). Payloads are the exact bytes of\n\
+the bus (CDR with its 4-byte encapsulation header); log_time is the receive time,\n\
+publish_time the message header's stamp, sequence its seq. Topics that appear while\n\
+recording are picked up.\n\
 \n\
 Stops after --duration-s, or on Ctrl-C / SIGTERM, and then finishes the file (summary and\n\
 indexes). Killed without warning, the file still replays up to the last flush (--flush-s).\n\

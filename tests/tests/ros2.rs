@@ -1,0 +1,298 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: a panic is how a test fails
+//! Recordings that ROS 2's tools open: a touch game and a coach game are recorded, and every
+//! message of every channel is decoded by ROS 2 decoders from PyPI (`mcap-ros2-support` from the
+//! schema in the file alone, `rosbags` serializing it back to the same bytes), and compared with
+//! what robocog itself decodes (the JSON `robocog topic echo` prints).
+//!
+//! The decoders live in a Python venv that `scripts/test` makes (ROBOCOG_ROS2_PYTHON).
+
+use robocog_tests::{
+    Launch, log_wait, read_recording, run, scratch, sigterm_and_wait, start_tool, unique_namespace,
+};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The Python of the venv holding the ROS 2 decoders.
+fn python() -> PathBuf {
+    match std::env::var_os("ROBOCOG_ROS2_PYTHON") {
+        Some(p) => PathBuf::from(p),
+        None => panic!(
+            "ROBOCOG_ROS2_PYTHON is not set: run the suite with scripts/test, which installs the ROS 2 decoders (mcap-ros2-support, rosbags) into a venv"
+        ),
+    }
+}
+
+/// Record `manifest` with `sets` until `until` returns, then stop the recorder and the graph.
+fn record(
+    tag: &str,
+    manifest: &str,
+    sets: &[&str],
+    until: impl FnOnce(&mut Launch),
+) -> (PathBuf, PathBuf) {
+    let ns = unique_namespace(tag);
+    let dir = scratch(&ns);
+    let file = dir.join(format!("{tag}.mcap"));
+    let mut args: Vec<&str> = Vec::new();
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    let mut live = Launch::start(&repo().join(manifest), &ns, &args);
+    let log = dir.join("record.log");
+    let mut rec = start_tool(
+        &live,
+        &ns,
+        &["record", "--output", &file.display().to_string()],
+        &log,
+    );
+    log_wait(&log, "the recorder", Duration::from_secs(30), |l| {
+        l.starts_with("recording namespace")
+    });
+    until(&mut live);
+    let status = sigterm_and_wait(&mut rec, &log);
+    assert!(
+        status.success(),
+        "the recorder failed:\n{}",
+        std::fs::read_to_string(&log).unwrap_or_default()
+    );
+    (dir, file)
+}
+
+/// FNV-1a, 64 bits: how the decoder script summarizes long byte sequences.
+fn fnv1a64(bytes: impl Iterator<Item = u8>) -> String {
+    let mut h: u64 = 0xcbf29ce484222325;
+    for b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x100000001b3);
+    }
+    format!("{h:016x}")
+}
+
+/// Long sequences of small integers summarized as the script does.
+fn summarize(v: &Value) -> Value {
+    match v {
+        Value::Array(items)
+            if items.len() > 64
+                && items
+                    .iter()
+                    .all(|x| x.as_u64().is_some_and(|n| n < 256) && !x.is_f64()) =>
+        {
+            serde_json::json!({
+                "bytes": items.len(),
+                "fnv1a64": fnv1a64(items.iter().map(|x| x.as_u64().unwrap_or(0) as u8)),
+            })
+        }
+        Value::Array(items) => Value::Array(items.iter().map(summarize).collect()),
+        Value::Object(m) => {
+            Value::Object(m.iter().map(|(k, x)| (k.clone(), summarize(x))).collect())
+        }
+        other => other.clone(),
+    }
+}
+
+/// Equal, floats to the precision of a `float32`; the first difference otherwise.
+fn differ(path: &str, ours: &Value, theirs: &Value) -> Option<String> {
+    match (ours, theirs) {
+        (Value::Object(a), Value::Object(b)) => {
+            if a.len() != b.len() {
+                return Some(format!("{path}: fields {a:?} vs {b:?}"));
+            }
+            a.iter().find_map(|(k, x)| match b.get(k) {
+                Some(y) => differ(&format!("{path}.{k}"), x, y),
+                None => Some(format!("{path}.{k}: missing from the ROS 2 decoding")),
+            })
+        }
+        (Value::Array(a), Value::Array(b)) => {
+            if a.len() != b.len() {
+                return Some(format!("{path}: {} vs {} elements", a.len(), b.len()));
+            }
+            a.iter()
+                .zip(b)
+                .enumerate()
+                .find_map(|(i, (x, y))| differ(&format!("{path}[{i}]"), x, y))
+        }
+        (Value::Number(a), Value::Number(b)) => {
+            if a == b {
+                return None;
+            }
+            let (x, y) = (
+                a.as_f64().unwrap_or(f64::NAN),
+                b.as_f64().unwrap_or(f64::NAN),
+            );
+            ((x - y).abs() > 1e-6 * x.abs().max(1.0)).then(|| format!("{path}: {a} vs {b}"))
+        }
+        _ => (ours != theirs).then(|| format!("{path}: {ours} vs {theirs}")),
+    }
+}
+
+/// Decode `file` with the ROS 2 decoders and check every message against robocog's decoding.
+/// Returns, per topic, how many messages were decoded.
+fn check_with_ros2_decoders(dir: &Path, file: &Path) -> BTreeMap<String, usize> {
+    let script = repo().join("tests/ros2/decode.py");
+    let out = run(
+        &python(),
+        &[script.display().to_string(), file.display().to_string()],
+        Duration::from_secs(600),
+    );
+    assert!(
+        out.status.success(),
+        "the ROS 2 decoders failed on {}:\n{}",
+        file.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(dir.join("ros2-decoded.jsonl"), &out.stdout).unwrap();
+    let theirs: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let (_, ours, _) = read_recording(file);
+    assert_eq!(
+        theirs.len(),
+        ours.len(),
+        "the ROS 2 reader saw another number of messages"
+    );
+    let defs = ros_msgs::definitions();
+    let mut decoded: BTreeMap<String, usize> = BTreeMap::new();
+    for (i, (o, t)) in ours.iter().zip(&theirs).enumerate() {
+        assert_eq!(t["topic"], o.topic.as_str(), "message {i}");
+        let entry = interfaces::msg::lookup(&o.type_name).unwrap();
+        match defs.ros_name(&o.type_name) {
+            Ok(name) => {
+                assert_eq!(t["schema"], name.as_str(), "message {i} on {}", o.topic);
+                assert!(
+                    t.get("error").is_none(),
+                    "a ROS 2 decoder refused message {i} on {} ({}): {}",
+                    o.topic,
+                    o.type_name,
+                    t["error"]
+                );
+                assert_eq!(
+                    t["same_bytes"], true,
+                    "rosbags did not serialize message {i} on {} back to its bytes",
+                    o.topic
+                );
+                let json = (entry.to_json)(&o.data).unwrap();
+                let mine = summarize(&defs.ros_view(&o.type_name, &json));
+                if let Some(d) = differ(&o.topic, &mine, &t["decoded"]) {
+                    panic!(
+                        "message {i} on {} ({}) reads differently in ROS 2: {d}",
+                        o.topic, o.type_name
+                    );
+                }
+                *decoded.entry(format!("{} ({name})", o.topic)).or_default() += 1;
+            }
+            Err(_) => {
+                // Robocog's own schema: a ROS 2 tool is told it cannot decode it.
+                assert_eq!(t["skipped"], true, "message {i} on {}", o.topic);
+                assert_eq!(t["encoding"], "robocog.msg-shape+json");
+            }
+        }
+    }
+    for (topic, n) in &decoded {
+        eprintln!("{n:>6} decoded by ROS 2 decoders: {topic}");
+    }
+    decoded
+}
+
+#[test]
+fn a_recorded_touch_game_reads_the_same_in_ros2_decoders() {
+    let (dir, file) = record(
+        "ros2touch",
+        "launch/touch_the_ball.toml",
+        &["panel=false", "camera_fps=5"],
+        |live| {
+            let status = live.wait_exit(Duration::from_secs(300));
+            assert!(
+                status.success(),
+                "the touch game failed ({status}):\n{}",
+                live.lines.all().join("\n")
+            );
+        },
+    );
+    let decoded = check_with_ros2_decoders(&dir, &file);
+    for topic in [
+        "vision/rgbd",
+        "vision/ball",
+        "body/joint_states",
+        "game/command",
+        "speech/utterance",
+        "audio/in",
+        "executive/transitions",
+    ] {
+        assert!(
+            decoded.keys().any(|k| k.starts_with(&format!("{topic} ("))),
+            "nothing on {topic} was decoded: {decoded:#?}"
+        );
+    }
+    let _ = std::fs::remove_file(&file);
+}
+
+#[test]
+fn a_recorded_coach_game_reads_the_same_in_ros2_decoders() {
+    let (dir, file) = record("ros2coach", "launch/nao_coach.toml", &[], |live| {
+        live.lines
+            .wait_for("the coach game under way", Duration::from_secs(60), |l| {
+                l.contains("nao_bridge") && l.contains("robot")
+            });
+        std::thread::sleep(Duration::from_secs(10));
+        live.sigterm();
+        live.wait_exit(Duration::from_secs(30));
+    });
+    let decoded = check_with_ros2_decoders(&dir, &file);
+    assert!(
+        decoded.len() >= 4,
+        "too few of the coach game's topics decoded: {decoded:#?}"
+    );
+    let _ = std::fs::remove_file(&file);
+}
+
+#[test]
+fn type_hashes_agree_with_an_independent_implementation() {
+    let defs = ros_msgs::definitions();
+    let dir = scratch(&unique_namespace("rihs01"));
+    let types: Vec<Value> = defs
+        .types()
+        .filter_map(|(ty, r)| {
+            let name = r.ok()?;
+            Some(serde_json::json!({
+                "ros2": name,
+                "definition": defs.full_definition(ty).unwrap(),
+            }))
+        })
+        .collect();
+    assert!(
+        types.len() >= 50,
+        "only {} types have a definition",
+        types.len()
+    );
+    let input = dir.join("types.json");
+    std::fs::write(&input, serde_json::to_vec(&types).unwrap()).unwrap();
+    let out = run(
+        &python(),
+        &[
+            repo().join("tests/ros2/hashes.py").display().to_string(),
+            input.display().to_string(),
+        ],
+        Duration::from_secs(120),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let theirs: BTreeMap<String, String> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(theirs.len(), types.len());
+    for (ty, r) in defs.types() {
+        let Ok(name) = r else { continue };
+        assert_eq!(
+            defs.rihs01(ty).unwrap(),
+            theirs[&name],
+            "the RIHS01 hash of {name} ({ty})"
+        );
+    }
+}
