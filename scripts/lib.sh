@@ -116,15 +116,16 @@ need_browser() {
   fi
 }
 
-# The ROS 2 decoders the recording tests read robocog's MCAP files with, as tools outside the
-# project would: mcap, mcap-ros2-support and rosbags from PyPI, pinned, in a Python venv outside
-# the clone. Exports ROBOCOG_ROS2_PYTHON, that venv's python. Idempotent.
+# The ROS 2 tools the tests read robocog with, as programs outside the project would: mcap,
+# mcap-ros2-support and rosbags (recordings, CDR, type hashes) and the eclipse-zenoh client at
+# the zenoh version of the workspace (an rmw_zenoh peer), from PyPI, pinned, in a Python venv
+# outside the clone. Exports ROBOCOG_ROS2_PYTHON, that venv's python. Idempotent.
 need_ros2_decoders() {
-  local pins="mcap==1.6.0 mcap-ros2-support==0.6.0 rosbags==0.11.9"
+  local pins="mcap==1.6.0 mcap-ros2-support==0.6.0 rosbags==0.11.9 eclipse-zenoh==1.10.2"
   local venv="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/ros2-decoders-$(echo "$pins" | cksum | cut -d' ' -f1)"
   if [ ! -x "$venv/bin/python" ] || [ ! -f "$venv/.installed" ]; then
     need_debs python3-venv
-    step "installing the ROS 2 decoders ($pins) into $venv"
+    step "installing the ROS 2 tools for the tests ($pins) into $venv"
     python3 -m venv "$venv"
     # shellcheck disable=SC2086
     "$venv/bin/pip" install --quiet --disable-pip-version-check $pins

@@ -296,3 +296,175 @@ fn type_hashes_agree_with_an_independent_implementation() {
         );
     }
 }
+
+/// A graph with the bridge, as a ROS 2 node on rmw_zenoh meets it: a zenoh client from PyPI
+/// (`tests/ros2/rmw_zenoh_client.py`) following rmw_zenoh's formats lists robocog's talker from
+/// the ROS 2 graph's tokens, reads its topic with a ROS 2 decoder, and publishes as a ROS 2
+/// publisher into a robocog subscriber; what it sends wrong is counted by the bridge, which runs
+/// on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ros2_node_on_rmw_zenoh_sees_robocog_topics_and_feeds_a_robocog_subscriber() {
+    use interfaces::msg::std_msgs::Text;
+    use interfaces::{Bus, topics};
+    let ns = unique_namespace("rmwzenoh");
+    let dir = scratch(&ns);
+    let manifest = robocog_tests::write_manifest(
+        &dir,
+        "bridge.toml",
+        r#"
+[graph]
+name = "bridge_test"
+
+[[component]]
+name = "talker"
+binary = "@FIXTURE@"
+args = ["--role", "talker", "--rate", "20"]
+
+[[component]]
+name = "ros2_bridge"
+binary = "ros2_bridge"
+args = ["--domain", "7"]
+"#,
+    );
+    let mut live = Launch::start(&manifest, &ns, &[]);
+    live.lines
+        .wait_for("the bridge up", Duration::from_secs(30), |l| {
+            l.contains("chatter (robocog.Text) bridged out as /chatter")
+        });
+    let defs = ros_msgs::definitions();
+    let ros_name = defs.ros_name("robocog.Text").unwrap();
+    let hash = defs.rihs01("robocog.Text").unwrap();
+    let definition = dir.join("Text.msg");
+    std::fs::write(&definition, defs.full_definition("robocog.Text").unwrap()).unwrap();
+
+    // What robocog receives from the ROS 2 side, and the bridge's counters.
+    let bus = Bus::open(&live.connect_args(), "test-ros2").await.unwrap();
+    let said = bus.subscriber_named::<Text>("ros_said", 64).await.unwrap();
+    let diags = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+
+    let script = repo().join("tests/ros2/rmw_zenoh_client.py");
+    let args: Vec<String> = vec![
+        script.display().to_string(),
+        "--connect".into(),
+        live.endpoint.clone(),
+        "--domain".into(),
+        "7".into(),
+        "--ros-name".into(),
+        ros_name.clone(),
+        "--hash".into(),
+        hash.clone(),
+        "--definition".into(),
+        definition.display().to_string(),
+        "--listen".into(),
+        "/chatter".into(),
+        "--publish".into(),
+        "/ros_said".into(),
+        "--ready-token".into(),
+        interfaces::liveliness::publisher_key(&ns, "ros2_bridge", "robocog.Text", "ros_said"),
+    ];
+    let client =
+        tokio::task::spawn_blocking(move || run(&python(), &args, Duration::from_secs(120)));
+    let mut from_ros = Vec::new();
+    let deadline = std::time::Instant::now() + Duration::from_secs(90);
+    while from_ros.len() < 3 && std::time::Instant::now() < deadline {
+        if let Some(t) = said.recv_timeout(Duration::from_millis(500)).await.unwrap() {
+            from_ros.push(t.text);
+        }
+    }
+    let out = client.await.unwrap();
+    assert!(
+        out.status.success(),
+        "the rmw_zenoh client failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("the rmw_zenoh client's report: {report:#}");
+
+    // 1. The ROS 2 graph holds the talker as a node and its publisher, with robocog's hash.
+    let tokens: Vec<&str> = report["tokens"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert!(
+        tokens
+            .iter()
+            .any(|t| t.starts_with("@ros2_lv/7/") && t.ends_with("/NN/%/%/talker")),
+        "no node token for the talker: {tokens:#?}"
+    );
+    let mp = format!("/MP/%/%/talker/%chatter/robocog_msgs::msg::dds_::Text_/{hash}/::,10:,:,:,,");
+    assert!(
+        tokens.iter().any(|t| t.ends_with(&mp)),
+        "no publisher token {mp}: {tokens:#?}"
+    );
+
+    // 2. Its samples read as ROS 2 reads them: the text, an attachment, sequence numbers.
+    let received = report["received"].as_array().unwrap();
+    assert_eq!(received.len(), 3, "{report:#}");
+    let mut last_seq = 0;
+    for r in received {
+        assert!(r["text"].as_str().unwrap().starts_with("hello "), "{r}");
+        assert_eq!(r["attachment_len"], 33, "{r}");
+        let seq = r["seq"].as_i64().unwrap();
+        assert!(seq > last_seq, "sequence numbers go up: {received:#?}");
+        last_seq = seq;
+        let age_ns = interfaces::header::system_now_ns() - r["source_ns"].as_i64().unwrap();
+        assert!((0..120_000_000_000).contains(&age_ns), "{r}");
+        assert_eq!(r["gid"].as_str().unwrap().len(), 32, "{r}");
+    }
+
+    // 3. The ROS 2 publisher fed the robocog subscriber, every good sample once.
+    assert_eq!(
+        from_ros,
+        ["from ros 1", "from ros 2", "from ros 3"],
+        "{report:#}\n{}",
+        live.lines.all().join("\n")
+    );
+
+    // 4. What it sent wrong was counted, and dropped.
+    let want = [
+        ("ros2_bad_attachment/ros_said", 2),
+        ("ros2_undecodable/ros_said", 1),
+        ("ros2_bad_hash/ros_said", 1),
+        ("ros2_unknown_type/ros_other", 1),
+        ("ros2_in/ros_said", 3),
+    ];
+    let deadline = std::time::Instant::now() + Duration::from_secs(15);
+    let mut last = None;
+    while std::time::Instant::now() < deadline {
+        if let Some(d) = diags
+            .recv_timeout(Duration::from_millis(500))
+            .await
+            .unwrap()
+            && d.component == "ros2_bridge"
+        {
+            let done = want.iter().all(|(k, n)| d.get(k) == *n);
+            last = Some(d);
+            if done {
+                break;
+            }
+        }
+    }
+    let d = last.expect("no diagnostics from the bridge");
+    for (k, n) in want {
+        assert_eq!(d.get(k), n, "{k}: {d:#?}");
+    }
+    assert!(d.get("ros2_out/chatter") >= 3, "{d:#?}");
+    assert!(
+        said.recv_timeout(Duration::from_millis(300))
+            .await
+            .unwrap()
+            .is_none(),
+        "a refused sample reached robocog"
+    );
+    // The bridge ran on.
+    assert_eq!(
+        live.lines.count(|l| l.contains("ros2_bridge exited")),
+        0,
+        "{}",
+        live.lines.all().join("\n")
+    );
+    live.sigterm();
+    live.wait_exit(Duration::from_secs(30));
+}

@@ -115,6 +115,15 @@ impl Definitions {
         }
     }
 
+    /// The robocog type whose ROS 2 name is `ros_name` (`robocog_msgs/msg/JointStates`).
+    pub fn robocog_type(&self, ros_name: &str) -> Option<&'static str> {
+        let name = ros_name.strip_prefix(PACKAGE)?.strip_prefix("/msg/")?;
+        self.by_type
+            .iter()
+            .find(|(_, r)| r.as_deref() == Ok(name))
+            .map(|(ty, _)| *ty)
+    }
+
     /// The full definition of a robocog type as rosbag2 and MCAP's `ros2msg` schemas hold it:
     /// its `.msg` text, then each message it uses (directly or not), once, after a line of `=`
     /// and `MSG: robocog_msgs/Name`.
