@@ -194,6 +194,14 @@ impl Bridge {
                     tracing::info!("{topic}: no robocog publisher left; no longer bridged out");
                 }
             }
+            // A component that publishes nothing any more leaves ROS 2's graph as a node too.
+            if !self
+                .outbound
+                .values()
+                .any(|o| o.publishers.contains_key(&component))
+            {
+                self.nodes.remove(&component);
+            }
             return;
         }
         let defs = ros_msgs::definitions();

@@ -234,6 +234,35 @@ impl<'de> de::SeqAccess<'de> for OneElement<'_> {
     }
 }
 
+/// Walk `len` values of a sequence through probes: what the visitor made of them, and their
+/// shapes.
+fn walk<'de, V: Visitor<'de>>(
+    catalog: &mut Catalog,
+    stack: &mut Vec<String>,
+    len: usize,
+    visitor: V,
+) -> Result<(V::Value, Vec<Shape>), ProbeError> {
+    let mut fields = Fields {
+        catalog,
+        stack,
+        shapes: Vec::new(),
+        next: 0,
+        len,
+    };
+    let v = visitor.visit_seq(&mut fields)?;
+    let shapes = fields
+        .shapes
+        .into_iter()
+        .map(|s| s.unwrap_or(Shape::Unsupported("nothing")))
+        .collect();
+    Ok((v, shapes))
+}
+
+/// Field names paired with their shapes.
+fn named(names: &[&str], shapes: Vec<Shape>) -> Vec<(String, Shape)> {
+    names.iter().map(|n| n.to_string()).zip(shapes).collect()
+}
+
 macro_rules! primitive {
     ($($method:ident => $shape:expr, $visit:ident($value:expr);)*) => {
         $(fn $method<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, ProbeError> {
@@ -336,19 +365,7 @@ impl<'de> de::Deserializer<'de> for Probe<'_> {
         len: usize,
         visitor: V,
     ) -> Result<V::Value, ProbeError> {
-        let mut fields = Fields {
-            catalog: self.catalog,
-            stack: self.stack,
-            shapes: Vec::new(),
-            next: 0,
-            len,
-        };
-        let v = visitor.visit_seq(&mut fields)?;
-        let shapes: Vec<Shape> = fields
-            .shapes
-            .into_iter()
-            .map(|s| s.unwrap_or(Shape::Unsupported("nothing")))
-            .collect();
+        let (v, shapes) = walk(self.catalog, self.stack, len, visitor)?;
         *self.out = Some(match shapes.first() {
             Some(first) if shapes.iter().all(|s| s == first) => {
                 Shape::Array(Box::new(first.clone()), len)
@@ -374,21 +391,9 @@ impl<'de> de::Deserializer<'de> for Probe<'_> {
         visitor: V,
     ) -> Result<V::Value, ProbeError> {
         self.enter(name)?;
-        let mut fields = Fields {
-            catalog: self.catalog,
-            stack: self.stack,
-            shapes: Vec::new(),
-            next: 0,
-            len: field_names.len(),
-        };
-        let v = visitor.visit_seq(&mut fields)?;
-        let shapes = fields.shapes;
+        let (v, shapes) = walk(self.catalog, self.stack, field_names.len(), visitor)?;
         self.stack.pop();
-        let described = field_names
-            .iter()
-            .zip(shapes)
-            .map(|(n, s)| (n.to_string(), s.unwrap_or(Shape::Unsupported("nothing"))))
-            .collect();
+        let described = named(field_names, shapes);
         self.catalog.insert(name, Container::Struct(described))?;
         *self.out = Some(Shape::Named(name.to_string()));
         Ok(v)
@@ -493,22 +498,10 @@ impl<'de> de::VariantAccess<'de> for EnumProbe<'_> {
         len: usize,
         visitor: V,
     ) -> Result<V::Value, ProbeError> {
-        let mut fields = Fields {
-            catalog: self.catalog,
-            stack: self.stack,
-            shapes: Vec::new(),
-            next: 0,
-            len,
-        };
-        let v = visitor.visit_seq(&mut fields)?;
-        *self.seen = Some(Variant::Fields(
-            fields
-                .shapes
-                .into_iter()
-                .enumerate()
-                .map(|(i, s)| (format!("_{i}"), s.unwrap_or(Shape::Unsupported("nothing"))))
-                .collect(),
-        ));
+        let (v, shapes) = walk(self.catalog, self.stack, len, visitor)?;
+        let names: Vec<String> = (0..len).map(|i| format!("_{i}")).collect();
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        *self.seen = Some(Variant::Fields(named(&names, shapes)));
         Ok(v)
     }
 
@@ -517,21 +510,8 @@ impl<'de> de::VariantAccess<'de> for EnumProbe<'_> {
         field_names: &'static [&'static str],
         visitor: V,
     ) -> Result<V::Value, ProbeError> {
-        let mut fields = Fields {
-            catalog: self.catalog,
-            stack: self.stack,
-            shapes: Vec::new(),
-            next: 0,
-            len: field_names.len(),
-        };
-        let v = visitor.visit_seq(&mut fields)?;
-        *self.seen = Some(Variant::Fields(
-            field_names
-                .iter()
-                .zip(fields.shapes)
-                .map(|(n, s)| (n.to_string(), s.unwrap_or(Shape::Unsupported("nothing"))))
-                .collect(),
-        ));
+        let (v, shapes) = walk(self.catalog, self.stack, field_names.len(), visitor)?;
+        *self.seen = Some(Variant::Fields(named(field_names, shapes)));
         Ok(v)
     }
 }
