@@ -264,9 +264,11 @@ async fn handle(shared: &Arc<Shared>, req: AgentRequest) -> Result<AgentReply, S
         ..Default::default()
     };
     // Nothing is touched for a start this agent would refuse.
-    if req.action == AgentAction::Start {
-        allowed(shared, &req)?;
-    }
+    let start_as = if req.action == AgentAction::Start {
+        Some(allowed(shared, &req)?)
+    } else {
+        None
+    };
     // A new launch takes the machine over: what an earlier one left is stopped first.
     let earlier = {
         let mut current = shared.launch_id.lock().unwrap_or_else(|p| p.into_inner());
@@ -314,7 +316,9 @@ async fn handle(shared: &Arc<Shared>, req: AgentRequest) -> Result<AgentReply, S
             reply.running.sort_by(|a, b| a.component.cmp(&b.component));
         }
         AgentAction::Start => {
-            reply.pid = start(shared, &req)?;
+            if let Some((spec, binary)) = start_as {
+                reply.pid = start(shared, &req, spec, binary)?;
+            }
         }
         AgentAction::Stop => {
             let grace = Duration::from_millis(req.stop_timeout_ms.clamp(100, 600_000));
@@ -324,7 +328,13 @@ async fn handle(shared: &Arc<Shared>, req: AgentRequest) -> Result<AgentReply, S
     Ok(reply)
 }
 
-fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> {
+/// Start `spec` (the component `req` asks for, as this agent's manifest has it) from `binary`.
+fn start(
+    shared: &Arc<Shared>,
+    req: &AgentRequest,
+    spec: &Component,
+    binary: PathBuf,
+) -> Result<u32, ServiceError> {
     if !interfaces::topic::is_valid_segment(&req.component)
         || !interfaces::topic::is_valid_segment(&req.graph)
     {
@@ -344,7 +354,6 @@ fn start(shared: &Arc<Shared>, req: &AgentRequest) -> Result<u32, ServiceError> 
             req.component, r.pid, r.generation
         )));
     }
-    let (spec, binary) = allowed(shared, req)?;
     let connect = interfaces::ConnectArgs::to_router(&shared.local_endpoint, &shared.namespace);
     let mut env = connect.to_env();
     env.push(("ROBOCOG_COMPONENT".into(), req.component.clone()));

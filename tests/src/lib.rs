@@ -420,6 +420,27 @@ pub fn start_tool(launch: &Launch, ns: &str, args: &[&str], log: &Path) -> Child
         .unwrap()
 }
 
+/// `robocog record --output file` on `launch`'s namespace `ns`, its log in `log`, once it says it
+/// records (within `timeout`).
+pub fn start_recorder(
+    launch: &Launch,
+    ns: &str,
+    file: &Path,
+    log: &Path,
+    timeout: Duration,
+) -> Child {
+    let rec = start_tool(
+        launch,
+        ns,
+        &["record", "--output", &file.display().to_string()],
+        log,
+    );
+    log_wait(log, "the recorder", timeout, |l| {
+        l.starts_with("recording namespace")
+    });
+    rec
+}
+
 /// Wait until a line of the file `log` satisfies `pred`.
 pub fn log_wait(log: &Path, what: &str, timeout: Duration, pred: impl Fn(&str) -> bool) -> String {
     let deadline = Instant::now() + timeout;

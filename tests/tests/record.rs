@@ -513,15 +513,7 @@ args = ["--role", "idle"]
 
     let file = dir.join("flood.mcap");
     let log = dir.join("record.log");
-    let mut rec = start_tool(
-        &launch,
-        &ns,
-        &["record", "--output", &file.display().to_string()],
-        &log,
-    );
-    log_wait(&log, "the recorder", Duration::from_secs(20), |l| {
-        l.starts_with("recording namespace")
-    });
+    let mut rec = start_recorder(&launch, &ns, &file, &log, Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(1000));
 
     let run_for = Duration::from_secs(3);

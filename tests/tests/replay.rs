@@ -248,15 +248,13 @@ fn record_a_game(dir: &Path, file: &Path) {
         &["--set", &scenario, "--set", "panel=false", "--set", &fps],
     );
     let log = dir.join("record.log");
-    let mut rec = KillOnDrop(start_tool(
+    let mut rec = KillOnDrop(start_recorder(
         &live,
         &ns,
-        &["record", "--output", &file.display().to_string()],
+        file,
         &log,
+        Duration::from_secs(30),
     ));
-    log_wait(&log, "the recorder", Duration::from_secs(30), |l| {
-        l.starts_with("recording namespace")
-    });
     let status = live.wait_exit(Duration::from_secs(300));
     let status_rec = sigterm_and_wait(&mut rec.0, &log);
     let rec_log = std::fs::read_to_string(&log).unwrap();

@@ -7,7 +7,7 @@
 //! The decoders live in a Python venv that `scripts/test` makes (ROBOCOG_ROS2_PYTHON).
 
 use robocog_tests::{
-    Launch, log_wait, read_recording, run, scratch, sigterm_and_wait, start_tool, unique_namespace,
+    Launch, read_recording, run, scratch, sigterm_and_wait, start_recorder, unique_namespace,
 };
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -44,15 +44,7 @@ fn record(
     }
     let mut live = Launch::start(&repo().join(manifest), &ns, &args);
     let log = dir.join("record.log");
-    let mut rec = start_tool(
-        &live,
-        &ns,
-        &["record", "--output", &file.display().to_string()],
-        &log,
-    );
-    log_wait(&log, "the recorder", Duration::from_secs(30), |l| {
-        l.starts_with("recording namespace")
-    });
+    let mut rec = start_recorder(&live, &ns, &file, &log, Duration::from_secs(30));
     until(&mut live);
     let status = sigterm_and_wait(&mut rec, &log);
     assert!(
@@ -467,4 +459,49 @@ args = ["--domain", "7"]
     );
     live.sigterm();
     live.wait_exit(Duration::from_secs(30));
+}
+
+/// `robocog interface` with what it cannot do: a type it does not know, a type ROS 2 cannot
+/// describe, a folder it cannot write.
+#[test]
+fn interface_refuses_unknown_types_undescribable_ones_and_unwritable_folders() {
+    let robocog = robocog_tests::bin("robocog");
+    let out = run(
+        &robocog,
+        &["interface".into(), "show".into(), "robocog.Nope".into()],
+        Duration::from_secs(30),
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no message type \"robocog.Nope\""), "{err}");
+    let out = run(
+        &robocog,
+        &[
+            "interface".into(),
+            "show".into(),
+            "robocog.dr.DrChange".into(),
+        ],
+        Duration::from_secs(30),
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no ROS 2 definition") && err.contains("tagged union"),
+        "{err}"
+    );
+    let out = run(
+        &robocog,
+        &[
+            "interface".into(),
+            "export".into(),
+            "/proc/robocog-cannot-write-here".into(),
+        ],
+        Duration::from_secs(30),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("cannot write the package under /proc/robocog-cannot-write-here"),
+        "{err}"
+    );
 }
