@@ -24,6 +24,7 @@
 //! - Service calls carry a time-out; a handler's error travels back typed ([`ServiceError`]).
 
 use crate::args::ConnectArgs;
+use crate::attachment::Attachment;
 use crate::codec::{self, CodecError};
 use crate::header::Clock;
 use crate::liveliness::{self, Token};
@@ -325,9 +326,11 @@ impl Bus {
             ))
             .await?;
         let shm = self.shm_provider();
+        let gid = crate::attachment::gid(&format!("{:?}/{}", inner.id(), inner.key_expr()));
         Ok(Publisher {
             inner,
             seq: AtomicU64::new(0),
+            gid,
             clock: self.inner.clock.clone(),
             shm,
             shm_fallbacks: self.inner.counters.counter(&format!("shm_fallback/{name}")),
@@ -646,6 +649,8 @@ pub(crate) fn offer_dropping_oldest<S>(
 pub struct Publisher<T: Message> {
     inner: zenoh::pubsub::Publisher<'static>,
     seq: AtomicU64,
+    /// The GID in every sample's attachment.
+    gid: [u8; 16],
     clock: Clock,
     shm: Option<Arc<ShmProvider<PosixShmProviderBackend>>>,
     shm_fallbacks: Arc<AtomicU64>,
@@ -672,20 +677,44 @@ impl<T: Message> Publisher<T> {
 
     /// Publish `msg` as it is, header untouched (replay, relays).
     pub async fn put(&self, msg: &T) -> Result<(), BusError> {
-        self.put_value(msg).await
+        let h = msg.header();
+        self.put_value(msg, h.seq, h.stamp_ns).await
     }
 
-    /// Encode `value` (a `T`, or a view of one: the same bytes) and publish it: straight into a
-    /// shared-memory buffer from [`SHM_THRESHOLD`] bytes up, else into a vector.
-    async fn put_value<V: Serialize + Sync>(&self, value: &V) -> Result<(), BusError> {
+    /// The attachment of a sample with this sequence number and stamp.
+    fn attachment(&self, seq: u64, stamp_ns: i64) -> Vec<u8> {
+        crate::attachment::Attachment {
+            sequence: seq as i64,
+            source_timestamp_ns: stamp_ns,
+            gid: self.gid,
+        }
+        .encode()
+        .to_vec()
+    }
+
+    /// Encode `value` (a `T`, or a view of one: the same bytes) and publish it with its sequence
+    /// number in the attachment: straight into a shared-memory buffer from [`SHM_THRESHOLD`]
+    /// bytes up, else into a vector.
+    async fn put_value<V: Serialize + Sync>(
+        &self,
+        value: &V,
+        seq: u64,
+        stamp_ns: i64,
+    ) -> Result<(), BusError> {
         let len = codec::encoded_len(value);
+        let attachment = self.attachment(seq, stamp_ns);
         if len >= SHM_THRESHOLD
             && let Some(shm) = &self.shm
         {
             match shm.alloc(len).with_policy::<GarbageCollect>().wait() {
                 Ok(mut buf) => {
                     codec::encode_into(value, &mut buf[..len], T::TYPE_NAME)?;
-                    return self.inner.put(buf).await.map_err(zerr("publishing"));
+                    return self
+                        .inner
+                        .put(buf)
+                        .attachment(attachment)
+                        .await
+                        .map_err(zerr("publishing"));
                 }
                 Err(e) => {
                     self.shm_fallbacks.fetch_add(1, Ordering::Relaxed);
@@ -694,12 +723,23 @@ impl<T: Message> Publisher<T> {
             }
         }
         let bytes = codec::encode(value, T::TYPE_NAME)?;
-        self.inner.put(bytes).await.map_err(zerr("publishing"))
+        self.inner
+            .put(bytes)
+            .attachment(attachment)
+            .await
+            .map_err(zerr("publishing"))
     }
 
-    /// Publish already-encoded CDR bytes (the topic tools and replay, which hold payloads).
+    /// Publish already-encoded CDR bytes (the topic tools and replay, which hold payloads), with
+    /// the next sequence number of this publisher.
     pub async fn put_encoded(&self, bytes: Vec<u8>) -> Result<(), BusError> {
-        self.inner.put(bytes).await.map_err(zerr("publishing"))
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        let attachment = self.attachment(seq, self.clock.now_ns());
+        self.inner
+            .put(bytes)
+            .attachment(attachment)
+            .await
+            .map_err(zerr("publishing"))
     }
 }
 
@@ -714,14 +754,20 @@ impl<T: Borrowable> Publisher<T> {
         if header.stamp_ns == 0 {
             header.stamp_ns = self.clock.now_ns();
         }
-        self.put_value(&*view).await
+        let (seq, stamp_ns) = (header.seq, header.stamp_ns);
+        self.put_value(&*view, seq, stamp_ns).await
     }
 
-    /// Publish a received message again as it is, header untouched, without a copy: the same
-    /// payload (for a frame, the same shared-memory buffer) goes out on this topic. For relays.
+    /// Publish a received message again as it is, header and sequence number untouched, without
+    /// a copy: the same payload (for a frame, the same shared-memory buffer) goes out on this
+    /// topic. For relays.
     pub async fn relay(&self, msg: &Received<T>) -> Result<(), BusError> {
+        let stamp_ns = codec::decode_borrowed::<T::View<'_>>(msg.payload.bytes(), T::TYPE_NAME)
+            .map(|mut v| T::view_header_mut(&mut v).stamp_ns)
+            .unwrap_or_default();
         self.inner
             .put(msg.payload.to_zbytes())
+            .attachment(self.attachment(msg.seq, stamp_ns))
             .await
             .map_err(zerr("publishing"))
     }
@@ -738,6 +784,8 @@ impl<T: Borrowable> Publisher<T> {
 /// only once nobody holds it. Drop a frame when done with it.
 pub struct Received<T: Borrowable> {
     payload: Payload,
+    /// The sequence number from the sample's attachment (0 without one).
+    seq: u64,
     _type: PhantomData<fn() -> T>,
 }
 
@@ -759,12 +807,17 @@ impl<T: Borrowable> Received<T> {
     pub fn view(&self) -> T::View<'_> {
         // The same bytes decoded as the same type when the message was received, and decoding is
         // a pure function of the bytes: this cannot fail, the default is never returned.
-        codec::decode_borrowed(self.payload.bytes(), T::TYPE_NAME).unwrap_or_default()
+        let mut view: T::View<'_> =
+            codec::decode_borrowed(self.payload.bytes(), T::TYPE_NAME).unwrap_or_default();
+        T::view_header_mut(&mut view).seq = self.seq;
+        view
     }
 
     /// The owned message (copies the buffers).
     pub fn to_message(&self) -> Result<T, CodecError> {
-        codec::decode(self.payload.bytes(), T::TYPE_NAME)
+        let mut m: T = codec::decode(self.payload.bytes(), T::TYPE_NAME)?;
+        m.header_mut().seq = self.seq;
+        Ok(m)
     }
 
     /// The CDR payload as received.
@@ -915,7 +968,10 @@ impl<T: Message> Subscriber<T> {
     fn decode(&self, sample: &Sample) -> Option<T> {
         self.count_received(sample);
         match codec::decode::<T>(&sample.payload().to_bytes(), T::TYPE_NAME) {
-            Ok(m) => Some(m),
+            Ok(mut m) => {
+                m.header_mut().seq = Attachment::sequence_of(sample.attachment()).unwrap_or(0);
+                Some(m)
+            }
             Err(e) => {
                 self.count_decode_error(&e);
                 None
@@ -999,6 +1055,7 @@ impl<T: Borrowable> Subscriber<T> {
         match checked {
             Ok(()) => Some(Received {
                 payload,
+                seq: Attachment::sequence_of(sample.attachment()).unwrap_or(0),
                 _type: PhantomData,
             }),
             Err(e) => {
@@ -1167,9 +1224,8 @@ mod tests {
             vec![],
             vec![0x00, 0x01],
             vec![0xff, 0xff, 0x00, 0x00, 1, 2, 3, 4],
-            // A good encapsulation, a header's stamp and sequence number, and then its frame id's
-            // length: 2^32-1.
-            [&codec::CDR_LE_HEADER[..], &[0; 16], &[0xff; 4]].concat(),
+            // A good encapsulation, a header's stamp, and then its frame id's length: 2^32-1.
+            [&codec::CDR_LE_HEADER[..], &[0; 8], &[0xff; 4]].concat(),
         ];
         for g in garbage {
             let reply = client
@@ -1221,9 +1277,9 @@ mod tests {
         // (and no multi-GiB allocation); the good frame after them comes through.
         let good = codec::encode(&frame(1), RgbdFrame::TYPE_NAME).unwrap();
         let mut huge_rgb = good.clone();
-        huge_rgb[92..96].copy_from_slice(&u32::MAX.to_le_bytes());
+        huge_rgb[84..88].copy_from_slice(&u32::MAX.to_le_bytes());
         let mut huge_id = good.clone();
-        huge_id[20..24].copy_from_slice(&u32::MAX.to_le_bytes());
+        huge_id[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
         let garbage = [
             good[..good.len() - 1].to_vec(),
             good[..100].to_vec(),

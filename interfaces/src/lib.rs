@@ -22,6 +22,7 @@
 //!   diagnostics the same way for all.
 
 pub mod args;
+pub mod attachment;
 pub mod bus;
 pub mod clock;
 pub mod codec;

@@ -74,6 +74,9 @@ pub struct RawSample {
     pub type_name: Option<String>,
     /// When it was received (system time, ns since the epoch).
     pub receipt_ns: i64,
+    /// Its publisher's sequence number, from the sample's attachment (`None`: no well-formed
+    /// attachment, a publisher that is not robocog's).
+    pub seq: Option<u64>,
     payload: ZBytes,
 }
 
@@ -85,6 +88,7 @@ impl RawSample {
             topic: topic.to_string(),
             type_name: type_name_of(&sample.encoding().to_string()).map(str::to_string),
             receipt_ns: crate::header::system_now_ns(),
+            seq: crate::attachment::Attachment::sequence_of(sample.attachment()),
             payload: sample.payload().clone(),
         })
     }
@@ -174,6 +178,8 @@ impl RawListener {
 /// Dropping it withdraws its liveliness token.
 pub struct RawPublisher {
     inner: zenoh::pubsub::Publisher<'static>,
+    seq: std::sync::atomic::AtomicU64,
+    gid: [u8; 16],
     topic: String,
     type_name: String,
     _token: LivelinessToken,
@@ -186,12 +192,28 @@ impl std::fmt::Debug for RawPublisher {
 }
 
 impl RawPublisher {
-    /// Publish `payload` (CDR bytes of the publisher's type) as it is.
+    /// Publish `payload` (CDR bytes of the publisher's type) as it is, with the next sequence
+    /// number of this publisher.
     pub async fn put(&self, payload: Vec<u8>) -> Result<(), BusError> {
-        self.inner.put(payload).await.map_err(|e| BusError::Zenoh {
-            what: format!("publishing on {}", self.topic),
-            reason: e.to_string(),
-        })
+        let seq = self.seq.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.put_with_seq(payload, seq).await
+    }
+
+    /// Publish `payload` as it is with sequence number `seq` (replay gives the recorded one).
+    pub async fn put_with_seq(&self, payload: Vec<u8>, seq: u64) -> Result<(), BusError> {
+        let attachment = crate::attachment::Attachment {
+            sequence: seq as i64,
+            source_timestamp_ns: crate::header::system_now_ns(),
+            gid: self.gid,
+        };
+        self.inner
+            .put(payload)
+            .attachment(attachment.encode().to_vec())
+            .await
+            .map_err(|e| BusError::Zenoh {
+                what: format!("publishing on {}", self.topic),
+                reason: e.to_string(),
+            })
     }
 
     /// Whether a subscription matches the topic now (a one-shot publication waits for one).
@@ -325,8 +347,11 @@ impl Bus {
                 what: format!("declaring the publisher of {topic}"),
                 reason: e.to_string(),
             })?;
+        let gid = crate::attachment::gid(&format!("{:?}/{}", inner.id(), inner.key_expr()));
         Ok(RawPublisher {
             inner,
+            seq: std::sync::atomic::AtomicU64::new(0),
+            gid,
             topic: topic.to_string(),
             type_name: type_name.to_string(),
             _token: token,

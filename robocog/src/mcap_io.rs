@@ -21,7 +21,8 @@
 //!   - `log_time`: when the recorder received the sample, ns since the Unix epoch (system clock);
 //!   - `publish_time`: the message header's `stamp_ns` (the publisher's clock), or the
 //!     `log_time` when the header does not decode;
-//!   - `sequence`: the header's `seq`, modulo 2^32 (MCAP sequences are 32-bit).
+//!   - `sequence`: the publisher's sequence number from the sample's attachment, modulo 2^32
+//!     (MCAP sequences are 32-bit); 0 for a sample without one.
 //! - A **metadata** record named [`METADATA_NAME`] written when the recording finishes: the
 //!   namespace, the recorder's counts, and the samples it dropped per topic (never silently).
 //!
@@ -187,16 +188,18 @@ impl RecordWriter {
         topic: &str,
         type_name: &str,
         log_time_ns: u64,
+        seq: Option<u64>,
         payload: &[u8],
     ) -> Result<(), WriteError> {
         let channel_id = self.channel(topic, type_name)?;
-        let (publish_time, sequence) = match header_of(payload) {
-            Some(h) => (u64::try_from(h.stamp_ns).unwrap_or(0), h.seq as u32),
+        let publish_time = match header_of(payload) {
+            Some(h) => u64::try_from(h.stamp_ns).unwrap_or(0),
             None => {
                 self.headerless += 1;
-                (log_time_ns, 0)
+                log_time_ns
             }
         };
+        let sequence = seq.unwrap_or(0) as u32;
         let header = mcap::records::MessageHeader {
             channel_id,
             sequence,
@@ -845,7 +848,8 @@ mod tests {
         let mut payloads = vec![];
         for i in 0..n {
             let p = text(i, 1_000 + i as i64, &format!("hello {i}"));
-            w.write("chatter", "robocog.Text", 5_000 + i, &p).unwrap();
+            w.write("chatter", "robocog.Text", 5_000 + i, Some(i), &p)
+                .unwrap();
             payloads.push(p);
             if (i + 1) % flush_every == 0 {
                 w.flush().unwrap();

@@ -1,6 +1,7 @@
 """Decode every message of an MCAP recording with ROS 2 decoders from PyPI, as a tool outside
 robocog would: `mcap-ros2-support` (what Foxglove's Python tooling uses) reads each `ros2msg`
-channel from its schema alone, and `rosbags` registers the same definitions and serializes the
+channel from its schema alone, and `rosbags` registers the same definitions over ROS 2 Jazzy's
+own standard messages (a standard message defined otherwise is an error) and serializes the
 decoded message again, which must give back the recorded bytes exactly.
 
 Prints one JSON line per message, in file order:
@@ -69,7 +70,7 @@ def register(store, schema_name, text):
 
 
 def main(path):
-    store = get_typestore(Stores.EMPTY)
+    store = get_typestore(Stores.ROS2_JAZZY)
     registered = set()
     out = sys.stdout
     factory = DecoderFactory()

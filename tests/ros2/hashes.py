@@ -1,6 +1,9 @@
 """RIHS01 type hashes (REP 2011) computed by `rosbags`, an implementation independent of
-robocog's: reads a JSON list of {"ros2": name, "definition": full definition} from the file
-given, prints a JSON object {name: hash}."""
+robocog's. Reads a JSON object from the file given:
+  {"robocog": [{"ros2": name, "definition": full definition}, ...], "standard": [name, ...]}
+and prints a JSON object {name: hash}: robocog's types registered from their definitions (over
+ROS 2 Jazzy's own standard messages, which must agree), and the standard messages as Jazzy
+defines them."""
 
 import json
 import sys
@@ -11,11 +14,15 @@ from decode import register
 
 
 def main(path):
+    spec = json.load(open(path))
     out = {}
-    for t in json.load(open(path)):
-        store = get_typestore(Stores.EMPTY)
+    for t in spec["robocog"]:
+        store = get_typestore(Stores.ROS2_JAZZY)
         register(store, t["ros2"], t["definition"])
         out[t["ros2"]] = store.hash_rihs01(t["ros2"])
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    for name in spec["standard"]:
+        out[name] = jazzy.hash_rihs01(name)
     print(json.dumps(out))
 
 

@@ -55,7 +55,12 @@ def main():
     store = get_typestore(Stores.EMPTY)
     register(store, a.ros_name, open(a.definition).read())
     Text = store.types[a.ros_name]
-    Header = store.types["robocog_msgs/msg/Header"]
+    Header = store.types["std_msgs/msg/Header"]
+    Time = store.types["builtin_interfaces/msg/Time"]
+
+    def now():
+        ns = time.time_ns()
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
@@ -129,13 +134,13 @@ def main():
     sent = []
     for i in range(1, a.count + 1):
         text = f"from ros {i}"
-        msg = Text(header=Header(stamp_ns=time.time_ns(), seq=i, frame_id=""), text=text)
+        msg = Text(header=Header(stamp=now(), frame_id=""), text=text)
         pub.put(bytes(store.serialize_cdr(msg, a.ros_name)), attachment=attachment(i, gid))
         sent.append(text)
         time.sleep(0.1)
     good = bytes(
         store.serialize_cdr(
-            Text(header=Header(stamp_ns=0, seq=0, frame_id=""), text="bad"), a.ros_name
+            Text(header=Header(stamp=Time(sec=0, nanosec=0), frame_id=""), text="bad"), a.ros_name
         )
     )
     pub.put(good)  # no attachment

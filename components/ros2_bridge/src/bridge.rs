@@ -307,9 +307,14 @@ impl Bridge {
             .declare_subscriber(self.bus.topic_key(topic))
             .allowed_origin(Locality::Remote)
             .callback(move |sample| {
+                // The source time stamp is the robocog publisher's, when its sample has one.
+                let source_timestamp_ns = sample
+                    .attachment()
+                    .and_then(|a| Attachment::decode(&a.to_bytes()).ok())
+                    .map_or_else(interfaces::header::system_now_ns, |a| a.source_timestamp_ns);
                 let attachment = Attachment {
                     sequence: sequence.fetch_add(1, Ordering::Relaxed),
-                    source_timestamp_ns: interfaces::header::system_now_ns(),
+                    source_timestamp_ns,
                     gid,
                 };
                 match publisher

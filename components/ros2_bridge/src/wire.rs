@@ -151,59 +151,9 @@ pub fn parse_entity(key: &str) -> Option<Entity> {
 }
 
 /// The GID of the entity of token `token`: rmw_zenoh's XXH3-128 of it, little-endian.
-pub fn gid(token: &str) -> [u8; 16] {
-    xxhash_rust::xxh3::xxh3_128(token.as_bytes()).to_le_bytes()
-}
-
-/// What every sample of a ROS 2 publisher carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Attachment {
-    pub sequence: i64,
-    pub source_timestamp_ns: i64,
-    pub gid: [u8; 16],
-}
-
-/// The length of an encoded [`Attachment`].
-pub const ATTACHMENT_LEN: usize = 33;
-
-impl Attachment {
-    pub fn encode(&self) -> [u8; ATTACHMENT_LEN] {
-        let mut out = [0u8; ATTACHMENT_LEN];
-        out[..8].copy_from_slice(&self.sequence.to_le_bytes());
-        out[8..16].copy_from_slice(&self.source_timestamp_ns.to_le_bytes());
-        out[16] = 16;
-        out[17..].copy_from_slice(&self.gid);
-        out
-    }
-
-    /// Read an attachment, or say what is wrong with it.
-    pub fn decode(bytes: &[u8]) -> Result<Attachment, String> {
-        if bytes.len() != ATTACHMENT_LEN {
-            return Err(format!(
-                "{} bytes where rmw_zenoh writes {ATTACHMENT_LEN} (sequence, time stamp, GID)",
-                bytes.len()
-            ));
-        }
-        if bytes[16] != 16 {
-            return Err(format!(
-                "a GID of {} bytes where rmw_zenoh's has 16",
-                bytes[16]
-            ));
-        }
-        let i64_at = |i: usize| {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(&bytes[i..i + 8]);
-            i64::from_le_bytes(b)
-        };
-        let mut gid = [0u8; 16];
-        gid.copy_from_slice(&bytes[17..]);
-        Ok(Attachment {
-            sequence: i64_at(0),
-            source_timestamp_ns: i64_at(8),
-            gid,
-        })
-    }
-}
+pub use interfaces::attachment::gid;
+/// What every sample of a ROS 2 publisher carries (robocog's samples carry the same).
+pub use interfaces::attachment::{ATTACHMENT_LEN, Attachment};
 
 /// Bytes as lowercase hex (for logs).
 pub fn hex(bytes: &[u8]) -> String {

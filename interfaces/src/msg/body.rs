@@ -162,8 +162,10 @@ pub struct ReachGoal {
     /// The DR frame the target is given in (`world`, `torso`) or tracked by (`ball`).
     pub frame: String,
     /// Target position in `frame` (m); `[0, 0, 0]` with `frame = "ball"` is the ball's centre.
+    #[serde(with = "crate::msg::ros::point")]
     pub position_m: [f64; 3],
     /// Target orientation in `frame`, for [`ReachKind::Pose`].
+    #[serde(with = "crate::msg::ros::quaternion")]
     pub orientation_xyzw: [f64; 4],
     /// Position tolerance (m); 0 = the component's default.
     pub tolerance_m: f64,
@@ -204,8 +206,10 @@ pub struct ReachStatus {
     /// Measured distance from the tip to the target now, m (`-1` when unknown).
     pub distance_m: f64,
     /// The target in `world` at the time of this status (m).
+    #[serde(with = "crate::msg::ros::point")]
     pub target_world_m: [f64; 3],
     /// The tip in `world` at the time of this status (m).
+    #[serde(with = "crate::msg::ros::point")]
     pub tip_world_m: [f64; 3],
     pub detail: String,
 }

@@ -17,6 +17,7 @@ pub mod diag;
 pub mod dr;
 pub mod executive;
 pub mod nao;
+pub mod ros;
 pub mod speech;
 pub mod std_msgs;
 pub mod tracking;

@@ -67,6 +67,7 @@ pub struct BallTrack {
     /// Whether `centre_m` is valid (found, and depth was available).
     pub has_centre_m: bool,
     /// Ball centre in the camera optical frame, m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_m: [f64; 3],
     /// Diameter measured from colour area and depth, m (0 when not found).
     pub diameter_m: f64,
@@ -76,8 +77,10 @@ pub struct BallTrack {
     /// DR knew the camera's pose at the frame's stamp).
     pub has_centre_world: bool,
     /// Ball centre in the DR's `world` frame (z up), m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_world_m: [f64; 3],
     /// Ball centre in the robot's base frame (`base_footprint`: x forward, z up), m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_robot_m: [f64; 3],
 }
 
@@ -118,8 +121,10 @@ pub struct BallTruth {
     /// `header.seq` of that [`super::vision::RgbdFrame`].
     pub frame_seq: u64,
     /// Ball centre in the camera optical frame, m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_m: [f64; 3],
     /// Ball centre in the world frame (z up), m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_world_m: [f64; 3],
     /// Ball diameter, m.
     pub diameter_m: f64,
@@ -136,8 +141,10 @@ pub struct SimBall {
     /// `false`: the ball is not in the scene (put away).
     pub present: bool,
     /// Centre in the world frame (z up), m.
+    #[serde(with = "crate::msg::ros::point")]
     pub centre_world_m: [f64; 3],
     /// Velocity in the world frame, m/s.
+    #[serde(with = "crate::msg::ros::vector3")]
     pub velocity_world_mps: [f64; 3],
     /// Diameter, m.
     pub diameter_m: f64,

@@ -156,7 +156,8 @@ mod tests {
         );
         f.header = Header {
             stamp_ns: 1_700_000_000_123_456_789,
-            seq: 42,
+            // Not in the payload: the sequence number travels in the sample's attachment.
+            seq: 0,
             frame_id: frame_id.into(),
         };
         for (i, b) in f.rgb.iter_mut().enumerate() {
@@ -207,9 +208,9 @@ mod tests {
     }
 
     /// Offsets of the length fields in the payload of `frame(4, 2, "cam")`: encapsulation (4),
-    /// stamp, seq (16), frame_id length (4) + "cam\0" (4), width, height (8), 4 intrinsics (32),
-    /// then rgb's length, 24 bytes, depth's length, 16 bytes.
-    const FRAME_ID_LEN_AT: usize = 4 + 16;
+    /// stamp (sec, nanosec: 8), frame_id length (4) + "cam\0" (4), width, height (8), 4
+    /// intrinsics (32), then rgb's length, 24 bytes, depth's length, 16 bytes.
+    const FRAME_ID_LEN_AT: usize = 4 + 8;
     const RGB_LEN_AT: usize = FRAME_ID_LEN_AT + 8 + 8 + 32;
     const DEPTH_LEN_AT: usize = RGB_LEN_AT + 4 + 24;
 

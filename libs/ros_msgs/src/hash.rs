@@ -9,7 +9,7 @@
 //! it. The JSON is written as Python's `json.dumps` writes it (`", "` and `": "` separators, keys
 //! in the order of the description), which is how `rosidl` computes it.
 
-use crate::msgdef::{Array, Base, MsgDef, PACKAGE};
+use crate::msgdef::{Array, Base, MsgDef, full_name};
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -39,7 +39,7 @@ fn field_type_json(base: &Base, array: Array) -> String {
     const NESTED: u8 = 1;
     let (id, nested) = match base {
         Base::Primitive(p) => (primitive_id(p), String::new()),
-        Base::Nested(n) => (NESTED, format!("{PACKAGE}/msg/{n}")),
+        Base::Nested(n) => (NESTED, full_name(n)),
     };
     let (id, capacity) = match array {
         Array::Single => (id, 0),
@@ -70,24 +70,24 @@ fn description_json(def: &MsgDef) -> String {
         .collect();
     format!(
         "{{\"type_name\": {}, \"fields\": [{}]}}",
-        json_string(&format!("{PACKAGE}/msg/{}", def.name)),
+        json_string(&full_name(&def.name)),
         fields.join(", ")
     )
 }
 
 /// The RIHS01 hash of message `root` (`RIHS01_` and 64 hex digits).
 pub fn rihs01(messages: &BTreeMap<String, MsgDef>, root: &str) -> String {
-    // Every message it uses, directly or not, by name (sorted, as the standard wants).
+    // Every message it uses, directly or not (sorted by full name, as the standard wants).
     let mut referenced = BTreeSet::new();
     let mut queue: Vec<&str> = messages[root].uses.iter().map(String::as_str).collect();
     while let Some(n) = queue.pop() {
-        if referenced.insert(n.to_string()) {
+        if referenced.insert((full_name(n), n.to_string())) {
             queue.extend(messages[n].uses.iter().map(String::as_str));
         }
     }
     let refs: Vec<String> = referenced
         .iter()
-        .map(|n| description_json(&messages[n]))
+        .map(|(_, n)| description_json(&messages[n]))
         .collect();
     let json = format!(
         "{{\"type_description\": {}, \"referenced_type_descriptions\": [{}]}}",

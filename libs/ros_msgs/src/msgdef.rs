@@ -5,7 +5,9 @@
 //! - `bool`, `i8`..`i64`, `u8`..`u64`, `f32`, `f64`, `String` become `bool`, `int8`..`int64`,
 //!   `uint8`..`uint64`, `float32`, `float64`, `string`;
 //! - byte blocks and `Vec<T>` become `uint8[]` and `T[]`, `[T; N]` becomes `T[N]`;
-//! - a struct becomes a message of the `robocog_msgs` package, named as the Rust type;
+//! - a struct becomes a message of the `robocog_msgs` package, named as the Rust type, unless its
+//!   serde name is a full ROS 2 name (`std_msgs/msg/Header`): then it is that standard message
+//!   (`interfaces::msg::ros` has them), whose definition must be ROS 2's own;
 //! - an enum whose variants carry nothing becomes `uint32` (serde writes the variant's index),
 //!   with one integer constant per variant (`BALL_TRACK_STATE_LOST=0`) in each message using it.
 //!
@@ -20,10 +22,31 @@ use std::collections::BTreeMap;
 /// The package every robocog message lives in.
 pub const PACKAGE: &str = "robocog_msgs";
 
+/// The full ROS 2 name of a message known by its serde name: `JointStates` is
+/// `robocog_msgs/msg/JointStates`, `std_msgs/msg/Header` is itself.
+pub fn full_name(name: &str) -> String {
+    if name.contains('/') {
+        name.to_string()
+    } else {
+        format!("{PACKAGE}/msg/{name}")
+    }
+}
+
+/// How a `.msg` file refers to a message: `robocog_msgs/JointStates`, `std_msgs/Header`.
+pub fn reference(name: &str) -> String {
+    full_name(name).replacen("/msg/", "/", 1)
+}
+
+/// The package of a message known by its serde name.
+pub fn package_of(name: &str) -> &str {
+    name.split_once('/').map_or(PACKAGE, |(p, _)| p)
+}
+
 /// One message definition.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct MsgDef {
-    /// The Rust type's name, which is the message's (`JointStates`).
+    /// The message's serde name: the Rust type's (`JointStates`, of `robocog_msgs`), or a
+    /// standard message's full name (`std_msgs/msg/Header`).
     pub name: String,
     /// The `.msg` text.
     pub text: String,
@@ -46,7 +69,7 @@ pub struct Field {
 pub enum Base {
     /// A primitive, by its `.msg` name (`uint32`, `string`, ...).
     Primitive(&'static str),
-    /// Another message of the package, by name.
+    /// Another message, by its serde name (see [`MsgDef::name`]).
     Nested(String),
 }
 
@@ -63,7 +86,7 @@ impl Field {
     pub fn type_text(&self) -> String {
         let base = match &self.base {
             Base::Primitive(p) => p.to_string(),
-            Base::Nested(n) => format!("{PACKAGE}/{n}"),
+            Base::Nested(n) => reference(n),
         };
         match self.array {
             Array::Single => base,
@@ -280,8 +303,12 @@ pub fn upper_snake(camel: &str) -> String {
     out
 }
 
-/// A ROS 2 message name: an uppercase letter, then letters and digits.
+/// A ROS 2 message name: an uppercase letter, then letters and digits; or a full name,
+/// `package/msg/Name`.
 fn is_message_name(s: &str) -> bool {
+    if let Some((package, rest)) = s.split_once("/msg/") {
+        return is_field_name(package) && is_message_name(rest);
+    }
     let mut c = s.chars();
     c.next().is_some_and(|f| f.is_ascii_uppercase()) && c.all(|x| x.is_ascii_alphanumeric())
 }
@@ -298,8 +325,69 @@ fn is_field_name(s: &str) -> bool {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::probe;
+    use serde::Deserialize;
+    use serde::de::DeserializeOwned;
+
+    /// Why `T` has no definition.
+    fn refusal<T: DeserializeOwned>() -> String {
+        let mut catalog = Catalog::default();
+        match probe::describe::<T>(&mut catalog) {
+            Ok(Shape::Named(n)) => Writer::new(&catalog).message(&n).unwrap_err(),
+            Ok(other) => panic!("not a struct: {other:?}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[allow(dead_code)]
+    #[derive(Deserialize)]
+    enum Union {
+        A(u8),
+        B,
+    }
+    #[allow(dead_code)]
+    #[derive(Deserialize)]
+    struct WithUnion {
+        u: Union,
+    }
+    #[allow(dead_code)]
+    #[derive(Deserialize)]
+    struct SeqOfSeq {
+        v: Vec<Vec<f32>>,
+    }
+    #[derive(Deserialize)]
+    struct Empty {}
+    #[allow(dead_code)]
+    #[derive(Deserialize)]
+    struct Tree {
+        x: u8,
+        children: Vec<Tree>,
+    }
+    #[allow(dead_code)]
+    #[derive(Deserialize)]
+    struct WithOption {
+        o: Option<u8>,
+    }
+
+    #[test]
+    fn what_ros2_cannot_say_is_refused_with_the_reason() {
+        let why = refusal::<WithUnion>();
+        assert!(
+            why.contains("tagged union") && why.contains("WithUnion.u"),
+            "{why}"
+        );
+        let why = refusal::<SeqOfSeq>();
+        assert!(why.contains("sequence of sequences"), "{why}");
+        let why = refusal::<Empty>();
+        assert!(why.contains("no fields"), "{why}");
+        let why = refusal::<Tree>();
+        assert!(why.contains("contains itself"), "{why}");
+        let why = refusal::<WithOption>();
+        assert!(why.to_lowercase().contains("option"), "{why}");
+    }
 
     #[test]
     fn names() {
@@ -312,6 +400,12 @@ mod tests {
         assert!(!is_field_name("a__b"));
         assert!(!is_field_name("Stamp"));
         assert!(is_message_name("JointStates"));
+        assert!(is_message_name("std_msgs/msg/Header"));
+        assert!(!is_message_name("std_msgs/Header"));
+        assert_eq!(reference("std_msgs/msg/Header"), "std_msgs/Header");
+        assert_eq!(reference("Text"), "robocog_msgs/Text");
+        assert_eq!(full_name("Text"), "robocog_msgs/msg/Text");
+        assert_eq!(package_of("geometry_msgs/msg/Point"), "geometry_msgs");
         assert!(!is_message_name("joint_states"));
     }
 }

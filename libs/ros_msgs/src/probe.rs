@@ -313,6 +313,11 @@ impl<'de> de::Deserializer<'de> for Probe<'_> {
         deserialize_ignored_any => "an ignored value";
     }
 
+    /// Messages are walked as CDR sees them: their wire forms.
+    fn is_human_readable(&self) -> bool {
+        false
+    }
+
     fn deserialize_any<V: Visitor<'de>>(self, _visitor: V) -> Result<V::Value, ProbeError> {
         Err(ProbeError::Any)
     }

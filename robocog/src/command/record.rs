@@ -73,6 +73,8 @@ struct Item {
     topic: String,
     type_name: String,
     log_time_ns: u64,
+    /// The publisher's sequence number (the sample's attachment).
+    seq: Option<u64>,
     payload: Vec<u8>,
 }
 
@@ -120,6 +122,7 @@ fn store(
         &item.topic,
         &item.type_name,
         item.log_time_ns,
+        item.seq,
         &item.payload,
     );
     in_flight.fetch_sub(len, Ordering::AcqRel);
@@ -443,6 +446,7 @@ impl Callback {
                 topic: topic.to_string(),
                 type_name,
                 log_time_ns,
+                seq: sample.seq,
                 payload: sample.into_payload(),
             };
             match self.tx.try_send(item) {

@@ -475,7 +475,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             Some(outlet) => {
                 outlet
                     .publisher
-                    .put(m.data)
+                    .put_with_seq(m.data, u64::from(m.sequence))
                     .await
                     .map_err(|e| anyhow::anyhow!("publishing on {}: {e}", m.topic))?;
                 published += 1;

@@ -39,6 +39,11 @@ pub enum Verb {
         /// Indented JSON.
         #[arg(long)]
         pretty: bool,
+        /// Print each message as a ROS 2 decoder reads it (`std_msgs/Header` with `stamp.sec`
+        /// and `stamp.nanosec`, points as `x`, `y`, `z`, enums as integers; `robocog interface
+        /// show TYPE` gives the definitions) instead of robocog's JSON.
+        #[arg(long)]
+        ros: bool,
     },
     /// Measure a topic's rate and the jitter of its intervals, once a second.
     Hz {
@@ -198,6 +203,7 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             count,
             timeout,
             pretty,
+            ros,
         } => {
             check_topic(&topic)?;
             let sub = bus
@@ -226,7 +232,19 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                     .as_deref()
                     .ok_or_else(|| "the sample names no type".to_string())
                     .and_then(|t| msg::lookup(t).map_err(|e| e.to_string()))
-                    .and_then(|e| (e.to_json)(&bytes).map_err(|e| e.to_string()));
+                    .and_then(|e| {
+                        if ros {
+                            return ros_msgs::definitions().ros_json(e.name, &bytes);
+                        }
+                        let mut v = (e.to_json)(&bytes).map_err(|e| e.to_string())?;
+                        // The sequence number travels beside the payload.
+                        if let (Some(seq), Some(h)) = (sample.seq, v.get_mut("header"))
+                            && let Some(h) = h.as_object_mut()
+                        {
+                            h.insert("seq".into(), seq.into());
+                        }
+                        Ok(v)
+                    });
                 match decoded {
                     Ok(v) => {
                         let s = if pretty {

@@ -290,8 +290,14 @@ fn recording() -> Option<Vec<u8>> {
             ..Text::default()
         };
         let payload = interfaces::codec::encode(&msg, "robocog.Text").ok()?;
-        w.write(topic, "robocog.Text", 1_000 + i as u64, &payload)
-            .ok()?;
+        w.write(
+            topic,
+            "robocog.Text",
+            1_000 + i as u64,
+            Some(i as u64),
+            &payload,
+        )
+        .ok()?;
     }
     w.finish(Default::default()).ok()?;
     let bytes = std::fs::read(&path).ok();
