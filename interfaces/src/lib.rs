@@ -15,7 +15,10 @@
 //!   type name ([`liveliness`]), so tools see a running graph with no opt-in.
 //! - **Headers**: every message starts with a [`Header`] (stamp, sequence number, frame), stamped
 //!   from the component's [`Clock`] ([`clock`]): the system's, or a virtual one that a test or,
-//!   with `--clock bus`, a replay drives; timers and time-outs wait on it too.
+//!   with `--clock bus`, a replay drives; timers and time-outs wait on it too. On the wire it is
+//!   a ROS 2 `std_msgs/Header`; the sequence number travels in every sample's attachment
+//!   ([`attachment`], rmw_zenoh's format), and ROS 2's standard types stand for geometry
+//!   ([`msg::ros`]).
 //! - **Connection flags**: [`args::ConnectArgs`] is the one set of flags of every binary
 //!   (`--namespace`, `--connect`, `--listen`, `--config`); multicast scouting is off.
 //! - **Components** run through [`node::run`], which wires logging, signals, liveliness and

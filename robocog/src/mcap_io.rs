@@ -889,10 +889,11 @@ mod tests {
         assert_eq!(schema.encoding, ROS2_SCHEMA_ENCODING);
         let text = std::str::from_utf8(&schema.data).unwrap();
         assert!(
-            text.starts_with("robocog_msgs/Header header\nstring text\n"),
+            text.starts_with("std_msgs/Header header\nstring text\n"),
             "{text}"
         );
-        assert!(text.contains("\nMSG: robocog_msgs/Header\n"), "{text}");
+        assert!(text.contains("\nMSG: std_msgs/Header\n"), "{text}");
+        assert!(text.contains("\nMSG: builtin_interfaces/Time\n"), "{text}");
     }
 
     /// Recordings made before the ROS 2 schemas (robocog's shape schema, named by the type) read

@@ -28,7 +28,8 @@ const ME: &str = "foreign";
 
 /// Payloads no message type decodes (checked against every registered type below).
 fn garbage() -> Vec<Vec<u8>> {
-    let huge_length = [&interfaces::codec::CDR_LE_HEADER[..], &[0; 16], &[0xff; 4]].concat();
+    // A good encapsulation, a header's stamp (sec, nanosec), then its frame id's length: 2^32-1.
+    let huge_length = [&interfaces::codec::CDR_LE_HEADER[..], &[0; 8], &[0xff; 4]].concat();
     vec![
         vec![],
         vec![0x00, 0x01],

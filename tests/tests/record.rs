@@ -390,24 +390,34 @@ args = ["--role", "talker", "--rate", "20"]
 
     // Damage: cut the file at several offsets, and flip one byte of a payload.
     let good = std::fs::read(&file).unwrap();
-    let victim = &msgs[msgs.len() * 2 / 3..]
-        .iter()
-        .find(|m| m.topic == "chatter")
-        .unwrap()
-        .data;
-    let at = good
-        .windows(victim.len())
-        .position(|w| w == victim.as_slice())
-        .unwrap()
-        + victim.len()
-        - 2;
+    // Where the first chatter message from `from` of the way through the messages is in the file
+    // (its payload is unique: it holds its stamp), and its payload.
+    let chatter_after = |from: usize| {
+        let data = &msgs[from..]
+            .iter()
+            .find(|m| m.topic == "chatter")
+            .unwrap()
+            .data;
+        let offset = good
+            .windows(data.len())
+            .position(|w| w == data.as_slice())
+            .unwrap();
+        (offset, data.len())
+    };
+    let (victim_at, victim_len) = chatter_after(msgs.len() * 2 / 3);
+    let at = victim_at + victim_len - 2;
+    // Inside the messages (the summary after them is a good part of a short file).
+    let three_quarters = chatter_after(msgs.len() * 3 / 4).0 + 2;
     let mut flipped = good.clone();
     flipped[at] ^= 0x20;
     let cases: Vec<(String, Vec<u8>)> = vec![
         ("cut in the magic".into(), good[..5].to_vec()),
         ("cut at 1/4".into(), good[..good.len() / 4].to_vec()),
         ("cut at 1/2".into(), good[..good.len() / 2].to_vec()),
-        ("cut at 3/4".into(), good[..good.len() * 3 / 4].to_vec()),
+        (
+            "cut at 3/4 of the messages".into(),
+            good[..three_quarters].to_vec(),
+        ),
         (
             "cut in the end magic".into(),
             good[..good.len() - 3].to_vec(),
@@ -467,7 +477,7 @@ args = ["--role", "talker", "--rate", "20"]
             "cut in the end magic" => {
                 assert_eq!(read, msgs.len(), "every message precedes the footer")
             }
-            "cut at 3/4" => assert!(read > 0 && read < msgs.len(), "{read}"),
+            "cut at 3/4 of the messages" => assert!(read > 0 && read < msgs.len(), "{read}"),
             w if w.contains("flipped") => {
                 assert!(line.contains("CRC"), "{line}");
                 assert!(read > 0 && read < msgs.len() * 2 / 3 + 1, "{read}");

@@ -485,7 +485,7 @@ args = ["--domain", "7"]
 /// write; and a tagged union of the DR shown with its `kind`. (What ROS 2 cannot describe at all
 /// is refused with the reason: `ros_msgs`' unit tests; no type of this build is.)
 #[test]
-fn interface_refuses_unknown_types_undescribable_ones_and_unwritable_folders() {
+fn interface_refuses_unknown_types_and_unwritable_folders_and_shows_tagged_unions() {
     let robocog = robocog_tests::bin("robocog");
     let out = run(
         &robocog,

@@ -82,7 +82,7 @@ pub enum Array {
 }
 
 impl Field {
-    /// The field's type as a `.msg` file writes it (`robocog_msgs/Header`, `float64[3]`).
+    /// The field's type as a `.msg` file writes it (`std_msgs/Header`, `robocog_msgs/Edge`, `float64[3]`).
     pub fn type_text(&self) -> String {
         let base = match &self.base {
             Base::Primitive(p) => p.to_string(),
