@@ -157,6 +157,7 @@ async fn router(cli: &Cli) -> anyhow::Result<()> {
         tls,
         machines: cli.machines.clone(),
         namespace: cli.namespace.clone(),
+        ros2_domain: None,
     })?;
     // Two namespaces share /dev/shm, two machines do not.
     config

@@ -1276,8 +1276,13 @@ mod tests {
         // Garbage on the topic: truncated, lengths of 2^32-1, no header. Each is a counted drop
         // (and no multi-GiB allocation); the good frame after them comes through.
         let good = codec::encode(&frame(1), RgbdFrame::TYPE_NAME).unwrap();
+        // The colour image's length field: the first 640 x 480 x 3 in the payload.
+        let rgb_len_at = good
+            .windows(4)
+            .position(|w| w == (640u32 * 480 * 3).to_le_bytes())
+            .unwrap();
         let mut huge_rgb = good.clone();
-        huge_rgb[84..88].copy_from_slice(&u32::MAX.to_le_bytes());
+        huge_rgb[rgb_len_at..rgb_len_at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
         let mut huge_id = good.clone();
         huge_id[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
         let garbage = [

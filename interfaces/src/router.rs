@@ -101,8 +101,11 @@ pub struct MachineRouter {
     pub tls: Option<TlsFiles>,
     /// Every machine of the graph: the certificates' common names the access control lets in.
     pub machines: Vec<String>,
-    /// The graph's namespace: the only keys the access control lets through.
+    /// The graph's namespace: the only keys the access control lets through...
     pub namespace: String,
+    /// ...with, when the graph runs the rmw_zenoh-compatible mode (`ros2_bridge`), the keys of
+    /// its ROS 2 domain (`@ros2_lv/<domain>/**` and `<domain>/**`).
+    pub ros2_domain: Option<u32>,
 }
 
 /// The zenoh configuration of a machine's router: it listens on loopback for its own components
@@ -135,7 +138,7 @@ pub fn machine_router_config(r: &MachineRouter) -> Result<zenoh::Config, BusErro
         set("transport/link/tls/verify_name_on_connect", "true".into())?;
         set(
             "access_control",
-            access_control(&r.machines, &r.namespace).to_string(),
+            access_control(&r.machines, &r.namespace, r.ros2_domain).to_string(),
         )?;
         set(
             "downsampling",
@@ -155,9 +158,19 @@ pub fn machine_router_config(r: &MachineRouter) -> Result<zenoh::Config, BusErro
     Ok(config)
 }
 
-/// zenoh's access control for a graph: everything on the graph's keys from loopback and from
-/// the graph's machines (by their certificates' common names), nothing else.
-fn access_control(machines: &[String], namespace: &str) -> serde_json::Value {
+/// zenoh's access control for a graph: everything on the graph's keys (and its ROS 2 domain's)
+/// from loopback and from the graph's machines (by their certificates' common names), nothing
+/// else.
+fn access_control(
+    machines: &[String],
+    namespace: &str,
+    ros2_domain: Option<u32>,
+) -> serde_json::Value {
+    let mut keys = vec![format!("robocog/{namespace}/**")];
+    if let Some(d) = ros2_domain {
+        keys.push(format!("@ros2_lv/{d}/**"));
+        keys.push(format!("{d}/**"));
+    }
     serde_json::json!({
         "enabled": true,
         "default_permission": "deny",
@@ -170,7 +183,7 @@ fn access_control(machines: &[String], namespace: &str) -> serde_json::Value {
                 "declare_queryable", "liveliness_token", "declare_liveliness_subscriber",
                 "liveliness_query"
             ],
-            "key_exprs": [format!("robocog/{namespace}/**")],
+            "key_exprs": keys,
         }],
         "subjects": [
             { "id": "this machine", "interfaces": ["lo"] },

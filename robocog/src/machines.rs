@@ -91,8 +91,23 @@ pub fn router_config(
         tls,
         machines: manifest.machines.iter().map(|m| m.name.clone()).collect(),
         namespace: namespace.to_string(),
+        ros2_domain: ros2_domain(manifest)?,
     };
     Ok(machine_router_config(&router)?)
+}
+
+/// The ROS 2 domain whose keys the routers let through: the manifest's `ros2_domain` when its
+/// `ros2` variable turns the rmw_zenoh-compatible mode on (every machine's agent needs the same
+/// `--set ros2=true`), else none.
+fn ros2_domain(manifest: &Manifest) -> anyhow::Result<Option<u32>> {
+    if manifest.vars.get("ros2").map(String::as_str) != Some("true") {
+        return Ok(None);
+    }
+    let text = manifest.vars.get("ros2_domain").map_or("0", String::as_str);
+    let domain = text.parse::<u32>().map_err(|_| {
+        anyhow::anyhow!("ros2_domain = {text:?} is not a ROS 2 domain id (0 to 232)")
+    })?;
+    Ok(Some(domain))
 }
 
 /// Open machine `me`'s router. Returns the session and its loopback endpoint (for the machine's
@@ -169,6 +184,22 @@ machine = "speech"
         assert_eq!(get("transport/link/tls/enable_mtls"), "true");
         assert!(get("access_control").contains("robocog/ns/**"));
         assert!(get("access_control").contains("speech"));
+        assert!(!get("access_control").contains("@ros2_lv"));
+        // With the rmw_zenoh-compatible mode on, the ROS 2 domain's keys get through too.
+        let mut ros = m.clone();
+        ros.vars.insert("ros2".into(), "true".into());
+        ros.vars.insert("ros2_domain".into(), "7".into());
+        let c = router_config(&ros, me, "tcp/127.0.0.1:0", "ns").unwrap();
+        let acl = c.get_json("access_control").unwrap();
+        assert!(
+            acl.contains("@ros2_lv/7/**") && acl.contains("\"7/**\""),
+            "{acl}"
+        );
+        ros.vars.insert("ros2_domain".into(), "seven".into());
+        let e = router_config(&ros, me, "tcp/127.0.0.1:0", "ns")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"seven\" is not a ROS 2 domain id"), "{e}");
         let e = machine(&m, "field").unwrap_err().to_string();
         assert!(e.contains("robot, speech"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();

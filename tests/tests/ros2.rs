@@ -268,6 +268,9 @@ fn type_hashes_agree_with_an_independent_implementation() {
         "builtin_interfaces/msg/Time",
         "geometry_msgs/msg/Point",
         "geometry_msgs/msg/Transform",
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/CameraInfo",
+        "sensor_msgs/msg/JointState",
     ] {
         assert!(standard.contains(&want), "{want} is not used: {standard:?}");
     }

@@ -115,13 +115,87 @@ pub struct JointState {
 }
 
 /// Every joint at one instant (topic `body/joint_states`, 100 Hz or more).
+///
+/// On the wire (`robocog_msgs/JointStates`): a `sensor_msgs/JointState` (its header is this
+/// message's; `effort` is 0 where none was measured), then `driver`, and per joint whether its
+/// effort was measured and its owner.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 pub struct JointStates {
     pub header: Header,
     /// Which driver produced it (`sim`, `dynamixel`).
     pub driver: String,
     pub joints: Vec<JointState>,
 }
+
+/// [`JointStates`] on the wire.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(rename = "JointStates")]
+pub struct JointStatesWire {
+    pub joint_state: crate::msg::ros::JointState,
+    pub driver: String,
+    pub has_effort: Vec<bool>,
+    pub owner: Vec<String>,
+}
+
+impl From<&JointStates> for JointStatesWire {
+    fn from(m: &JointStates) -> Self {
+        let js = &m.joints;
+        JointStatesWire {
+            joint_state: crate::msg::ros::JointState {
+                header: m.header.clone(),
+                name: js.iter().map(|j| j.name.clone()).collect(),
+                position: js.iter().map(|j| j.position).collect(),
+                velocity: js.iter().map(|j| j.velocity).collect(),
+                effort: js.iter().map(|j| j.effort).collect(),
+            },
+            driver: m.driver.clone(),
+            has_effort: js.iter().map(|j| j.has_effort).collect(),
+            owner: js.iter().map(|j| j.owner.clone()).collect(),
+        }
+    }
+}
+
+impl TryFrom<JointStatesWire> for JointStates {
+    type Error = String;
+    fn try_from(w: JointStatesWire) -> Result<Self, String> {
+        let s = w.joint_state;
+        let n = s.name.len();
+        for (what, len) in [
+            ("positions", s.position.len()),
+            ("velocities", s.velocity.len()),
+            ("efforts", s.effort.len()),
+            ("effort flags", w.has_effort.len()),
+            ("owners", w.owner.len()),
+        ] {
+            if len != n {
+                return Err(format!("{len} {what} for {n} joints"));
+            }
+        }
+        let mut joints = Vec::with_capacity(n);
+        let rest = s.position.into_iter().zip(s.velocity).zip(s.effort);
+        let flags = w.has_effort.into_iter().zip(w.owner);
+        for ((name, ((position, velocity), effort)), (has_effort, owner)) in
+            s.name.into_iter().zip(rest).zip(flags)
+        {
+            joints.push(JointState {
+                name,
+                position,
+                velocity,
+                has_effort,
+                effort,
+                owner,
+            });
+        }
+        Ok(JointStates {
+            header: s.header,
+            driver: w.driver,
+            joints,
+        })
+    }
+}
+
+crate::wire_form!(JointStates, JointStatesWire);
 
 impl JointStates {
     /// The state of the joint called `name`.
@@ -212,4 +286,49 @@ pub struct ReachStatus {
     #[serde(with = "crate::msg::ros::point")]
     pub tip_world_m: [f64; 3],
     pub detail: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec;
+    use crate::msg::Message;
+
+    #[test]
+    fn joint_states_go_as_a_sensor_msgs_joint_state_and_come_back_whole() {
+        let m = JointStates {
+            header: Header::new("base_link"),
+            driver: "sim".into(),
+            joints: vec![
+                JointState {
+                    name: "neck_yaw".into(),
+                    position: 0.5,
+                    velocity: -0.25,
+                    has_effort: true,
+                    effort: 1.5,
+                    owner: "ik".into(),
+                },
+                JointState {
+                    name: "left_elbow".into(),
+                    position: -1.0,
+                    ..Default::default()
+                },
+            ],
+        };
+        let bytes = codec::encode(&m, JointStates::TYPE_NAME).unwrap();
+        let wire: JointStatesWire = codec::decode(&bytes, "wire").unwrap();
+        assert_eq!(wire.joint_state.name, ["neck_yaw", "left_elbow"]);
+        assert_eq!(wire.joint_state.position, [0.5, -1.0]);
+        assert_eq!(wire.has_effort, [true, false]);
+        assert_eq!(codec::decode::<JointStates>(&bytes, "js").unwrap(), m);
+        // Arrays of other lengths than the names: an error that says so.
+        let mut bad = wire;
+        bad.owner.pop();
+        let bytes = codec::encode(&bad, "wire").unwrap();
+        let e = codec::decode::<JointStates>(&bytes, "js").unwrap_err();
+        assert!(e.to_string().contains("1 owners for 2 joints"), "{e}");
+        // JSON keeps robocog's form.
+        let json = serde_json::to_value(&m).unwrap();
+        assert_eq!(json["joints"][0]["owner"], "ik");
+    }
 }

@@ -5,6 +5,8 @@
 //! own definitions:
 //! - [`crate::Header`] is a `std_msgs/Header` (its `stamp_ns` as a `builtin_interfaces/Time`; its
 //!   sequence number travels beside the payload, in the sample's attachment, as rmw_zenoh does);
+//! - the camera's frames hold a `sensor_msgs/CameraInfo` and two `sensor_msgs/Image`s, joint
+//!   states a `sensor_msgs/JointState`;
 //! - points, vectors and quaternions are `geometry_msgs/Point`, `Vector3` and `Quaternion`
 //!   (field attributes [`point`], [`vector3`], [`quaternion`]), and the DR's transforms are
 //!   `geometry_msgs/Transform`;
@@ -107,6 +109,90 @@ impl Default for Quaternion {
 pub struct Transform {
     pub translation: Vector3,
     pub rotation: Quaternion,
+}
+
+/// `sensor_msgs/RegionOfInterest`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "sensor_msgs/msg/RegionOfInterest")]
+pub struct RegionOfInterest {
+    pub x_offset: u32,
+    pub y_offset: u32,
+    pub height: u32,
+    pub width: u32,
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/CameraInfo`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "sensor_msgs/msg/CameraInfo")]
+pub struct CameraInfo {
+    pub header: crate::Header,
+    pub height: u32,
+    pub width: u32,
+    pub distortion_model: String,
+    pub d: Vec<f64>,
+    pub k: [f64; 9],
+    pub r: [f64; 9],
+    pub p: [f64; 12],
+    pub binning_x: u32,
+    pub binning_y: u32,
+    pub roi: RegionOfInterest,
+}
+
+impl CameraInfo {
+    /// A distortion-free pinhole camera: `plumb_bob` with zero coefficients, `R` the identity.
+    pub fn pinhole(
+        header: crate::Header,
+        width: u32,
+        height: u32,
+        [fx, fy, cx, cy]: [f64; 4],
+    ) -> Self {
+        CameraInfo {
+            header,
+            height,
+            width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            binning_x: 0,
+            binning_y: 0,
+            roi: RegionOfInterest::default(),
+        }
+    }
+
+    /// `[fx, fy, cx, cy]` of `K`.
+    pub fn focal_and_centre(&self) -> [f64; 4] {
+        [self.k[0], self.k[4], self.k[2], self.k[5]]
+    }
+}
+
+/// `sensor_msgs/Image`, its pixels borrowed (from the payload when decoded, from the owner's
+/// buffers when encoded).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "sensor_msgs/msg/Image")]
+pub struct Image<'a> {
+    pub header: crate::Header,
+    pub height: u32,
+    pub width: u32,
+    #[serde(borrow)]
+    pub encoding: &'a str,
+    pub is_bigendian: u8,
+    pub step: u32,
+    #[serde(borrow, with = "serde_bytes")]
+    pub data: &'a [u8],
+}
+
+/// `sensor_msgs/JointState`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "sensor_msgs/msg/JointState")]
+pub struct JointState {
+    pub header: crate::Header,
+    pub name: Vec<String>,
+    pub position: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub effort: Vec<f64>,
 }
 
 impl From<[f64; 3]> for Point {

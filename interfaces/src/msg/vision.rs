@@ -2,7 +2,8 @@
 
 use crate::header::Header;
 use crate::msg::Borrowable;
-use serde::{Deserialize, Serialize};
+use crate::msg::ros::{CameraInfo, Image};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// Pinhole intrinsics of a camera, in pixels (optical frame: z forward, x right, y down).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -16,7 +17,12 @@ pub struct Intrinsics {
 /// One registered RGB-D frame: colour (RGB8, row-major) and depth (u16 millimetres, 0 = no
 /// reading, little-endian bytes), of the same size, in the camera's optical frame
 /// (`header.frame_id`). About 1.5 MB at 640x480: it travels through shared memory on one host.
+///
+/// On the wire (`robocog_msgs/RgbdFrame`): the header, the camera's `sensor_msgs/CameraInfo`
+/// (one for both images: they are registered), and two `sensor_msgs/Image`s, `rgb8` and `16UC1`
+/// (millimetres, little-endian), so ROS 2 tools read the images as images.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 pub struct RgbdFrame {
     pub header: Header,
     pub width: u32,
@@ -74,6 +80,7 @@ impl RgbdFrame {
 /// Like a decoded [`RgbdFrame`], a view is only well-formed CDR: check [`RgbdFrameView::is_consistent`]
 /// (or convert with checks) before indexing the buffers.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 pub struct RgbdFrameView<'a> {
     pub header: Header,
     pub width: u32,
@@ -109,6 +116,133 @@ impl RgbdFrameView<'_> {
     /// Depth at pixel (u, v) in millimetres, `None` outside the image or for a malformed frame.
     pub fn depth_at(&self, u: u32, v: u32) -> Option<u16> {
         depth_at(self.width, self.height, self.depth_mm, u, v)
+    }
+}
+
+/// The encoding of [`RgbdFrame::rgb`] in its `sensor_msgs/Image`.
+pub const RGB_ENCODING: &str = "rgb8";
+/// The encoding of [`RgbdFrame::depth_mm`] in its `sensor_msgs/Image` (millimetres).
+pub const DEPTH_ENCODING: &str = "16UC1";
+
+/// [`RgbdFrame`] on the wire.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "RgbdFrame")]
+struct RgbdFrameWire<'a> {
+    header: Header,
+    camera_info: CameraInfo,
+    #[serde(borrow)]
+    rgb: Image<'a>,
+    #[serde(borrow)]
+    depth: Image<'a>,
+}
+
+impl<'a> RgbdFrameView<'a> {
+    fn to_wire(&self) -> RgbdFrameWire<'a> {
+        let i = self.intrinsics;
+        let image = |encoding, bytes_per_pixel: u32, data| Image {
+            header: self.header.clone(),
+            height: self.height,
+            width: self.width,
+            encoding,
+            is_bigendian: 0,
+            step: self.width.saturating_mul(bytes_per_pixel),
+            data,
+        };
+        RgbdFrameWire {
+            header: self.header.clone(),
+            camera_info: CameraInfo::pinhole(
+                self.header.clone(),
+                self.width,
+                self.height,
+                [i.fx, i.fy, i.cx, i.cy],
+            ),
+            rgb: image(RGB_ENCODING, 3, self.rgb),
+            depth: image(DEPTH_ENCODING, 2, self.depth_mm),
+        }
+    }
+
+    fn from_wire(w: RgbdFrameWire<'a>) -> Result<Self, String> {
+        let (width, height) = (w.rgb.width, w.rgb.height);
+        for (image, encoding, bytes_per_pixel) in
+            [(&w.rgb, RGB_ENCODING, 3u32), (&w.depth, DEPTH_ENCODING, 2)]
+        {
+            // An image without pixels has no encoding to check (ROS 2 tools leave it empty).
+            let empty = image.data.is_empty() && (image.width == 0 || image.height == 0);
+            if image.encoding != encoding && !empty {
+                return Err(format!(
+                    "an image encoded {:?} where a frame has {encoding:?}",
+                    image.encoding
+                ));
+            }
+            if image.is_bigendian != 0 {
+                return Err(format!(
+                    "a big-endian {encoding} image (frames are little-endian)"
+                ));
+            }
+            if (image.width, image.height) != (width, height) {
+                return Err(format!(
+                    "a {encoding} image of {}x{} in a {width}x{height} frame (they are registered)",
+                    image.width, image.height
+                ));
+            }
+            if image.step != width.saturating_mul(bytes_per_pixel) {
+                return Err(format!(
+                    "a {encoding} image with rows of {} bytes where {width} pixels take {}",
+                    image.step,
+                    width.saturating_mul(bytes_per_pixel)
+                ));
+            }
+        }
+        let [fx, fy, cx, cy] = w.camera_info.focal_and_centre();
+        Ok(RgbdFrameView {
+            header: w.header,
+            width,
+            height,
+            intrinsics: Intrinsics { fx, fy, cx, cy },
+            rgb: w.rgb.data,
+            depth_mm: w.depth.data,
+        })
+    }
+}
+
+impl Serialize for RgbdFrameView<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            RgbdFrameView::serialize(self, s)
+        } else {
+            self.to_wire().serialize(s)
+        }
+    }
+}
+
+impl<'de: 'a, 'a> Deserialize<'de> for RgbdFrameView<'a> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        if d.is_human_readable() {
+            RgbdFrameView::deserialize(d)
+        } else {
+            RgbdFrameView::from_wire(RgbdFrameWire::deserialize(d)?)
+                .map_err(serde::de::Error::custom)
+        }
+    }
+}
+
+impl Serialize for RgbdFrame {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            RgbdFrame::serialize(self, s)
+        } else {
+            self.view().to_wire().serialize(s)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for RgbdFrame {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        if d.is_human_readable() {
+            RgbdFrame::deserialize(d)
+        } else {
+            <RgbdFrameView<'de> as Deserialize<'de>>::deserialize(d).map(|v| v.to_frame())
+        }
     }
 }
 
@@ -207,12 +341,17 @@ mod tests {
         assert!(view_of(&bytes).is_ok());
     }
 
-    /// Offsets of the length fields in the payload of `frame(4, 2, "cam")`: encapsulation (4),
-    /// stamp (sec, nanosec: 8), frame_id length (4) + "cam\0" (4), width, height (8), 4
-    /// intrinsics (32), then rgb's length, 24 bytes, depth's length, 16 bytes.
-    const FRAME_ID_LEN_AT: usize = 4 + 8;
-    const RGB_LEN_AT: usize = FRAME_ID_LEN_AT + 8 + 8 + 32;
-    const DEPTH_LEN_AT: usize = RGB_LEN_AT + 4 + 24;
+    /// Offsets of the length fields in the payload of `frame(4, 2, "cam")`, CDR aligning each
+    /// value to its size from the end of the 4-byte encapsulation:
+    /// - the header: stamp (8), frame_id's length at 12, "cam\0";
+    /// - the `CameraInfo` (from 20): header (12), height, width, "plumb_bob" (4 + 10), `d` (5
+    ///   f64 from 64), `k`, `r`, `p` (30 f64), binning (8), roi (17): it ends at 373;
+    /// - the colour `Image` (header from 376, 16 bytes; height, width; "rgb8" (4 + 5); is_bigendian;
+    ///   step at 412): its data's length at 416, then 24 bytes;
+    /// - the depth `Image` (from 444, the same with "16UC1"): its data's length at 484, then 16.
+    const FRAME_ID_LEN_AT: usize = 12;
+    const RGB_LEN_AT: usize = 416;
+    const DEPTH_LEN_AT: usize = 484;
 
     #[test]
     fn length_fields_past_the_payload_are_errors_not_allocations() {
@@ -234,6 +373,30 @@ mod tests {
                     "length {len} at {at}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn on_the_wire_a_frame_holds_ros2_images_and_refuses_other_encodings() {
+        let good = codec::encode(&frame(4, 2, "cam"), RgbdFrame::TYPE_NAME).unwrap();
+        let at = |needle: &[u8]| {
+            good.windows(needle.len())
+                .position(|w| w == needle)
+                .unwrap()
+        };
+        // The images name their encodings; the camera info its distortion model.
+        at(b"rgb8\0");
+        at(b"16UC1\0");
+        at(b"plumb_bob\0");
+        // A BGR image, or depth in metres, is not a frame: a decoding error that says why.
+        for (from, to) in [(&b"rgb8"[..], &b"bgr8"[..]), (b"16UC1", b"32FC1")] {
+            let mut bad = good.clone();
+            let i = at(from);
+            bad[i..i + from.len()].copy_from_slice(to);
+            let e = codec::decode::<RgbdFrame>(&bad, RgbdFrame::TYPE_NAME).unwrap_err();
+            let to = std::str::from_utf8(to).unwrap();
+            assert!(e.to_string().contains(to), "{e}");
+            assert!(view_of(&bad).is_err());
         }
     }
 

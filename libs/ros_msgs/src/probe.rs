@@ -296,10 +296,10 @@ impl<'de> de::Deserializer<'de> for Probe<'_> {
         deserialize_u64 => Shape::U64, visit_u64(0);
         deserialize_f32 => Shape::F32, visit_f32(0.0);
         deserialize_f64 => Shape::F64, visit_f64(0.0);
-        deserialize_str => Shape::Str, visit_str("");
+        deserialize_str => Shape::Str, visit_borrowed_str("");
         deserialize_string => Shape::Str, visit_string(String::new());
-        deserialize_bytes => Shape::Bytes, visit_bytes(&[]);
-        deserialize_byte_buf => Shape::Bytes, visit_byte_buf(Vec::new());
+        deserialize_bytes => Shape::Bytes, visit_borrowed_bytes(&[]);
+        deserialize_byte_buf => Shape::Bytes, visit_borrowed_bytes(&[]);
     }
 
     unsupported! {
