@@ -238,6 +238,30 @@ pub struct Recorded {
     pub publish_time_ns: u64,
     pub sequence: u32,
     pub data: Vec<u8>,
+    /// Why this build would misread the channel's payloads, if it would: they were recorded
+    /// with another wire form of the type than this build's (an older robocog). `None`: same
+    /// definition, or a channel without a schema to tell.
+    pub wire_mismatch: Option<String>,
+}
+
+/// Why payloads recorded under this schema would not read as `type_name` of this build: the
+/// schema is the type's ROS 2 definition of another build, or robocog's JSON shape (written
+/// before the payloads carried ROS 2's standard types, `std_msgs/Header` first).
+pub fn wire_mismatch(type_name: &str, encoding: &str, data: &[u8]) -> Option<String> {
+    match encoding {
+        ROS2_SCHEMA_ENCODING => {
+            let ours = ros_msgs::definitions().full_definition(type_name).ok()?;
+            (ours.as_bytes() != data).then(|| {
+                format!(
+                    "recorded with another definition of {type_name} than this build's (see `robocog interface show {type_name}`): replay it with the robocog that recorded it"
+                )
+            })
+        }
+        SCHEMA_ENCODING => Some(format!(
+            "recorded before robocog's payloads carried ROS 2's standard types (its {type_name} header is not a std_msgs/Header): replay it with the robocog that recorded it"
+        )),
+        _ => None,
+    }
 }
 
 /// Where and how a recording is damaged. Every variant names the byte offset of the problem.
@@ -322,6 +346,7 @@ struct ChannelInfo {
     topic: String,
     type_name: String,
     message_encoding: String,
+    wire_mismatch: Option<String>,
 }
 
 /// Reads a recording from its first byte to its last, in file order, without the summary.
@@ -335,7 +360,8 @@ pub struct RecordingReader {
     started: bool,
     finished: bool,
     in_summary: bool,
-    schemas: HashMap<u16, String>,
+    /// Name, encoding and data of each schema.
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channels: HashMap<u16, ChannelInfo>,
     pending: VecDeque<Recorded>,
     /// An error to yield once `pending` is drained.
@@ -402,22 +428,28 @@ impl RecordingReader {
     fn absorb(&mut self, record: mcap::records::Record<'_>, offset: u64) -> Result<(), Damage> {
         use mcap::records::Record;
         match record {
-            Record::Schema { header, .. } => {
-                self.schemas.insert(header.id, header.name);
+            Record::Schema { header, data } => {
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
                 let type_name = c
                     .metadata
                     .get(TYPE_KEY)
                     .cloned()
-                    .or_else(|| self.schemas.get(&c.schema_id).cloned())
+                    .or_else(|| self.schemas.get(&c.schema_id).map(|s| s.0.clone()))
                     .unwrap_or_default();
+                let wire_mismatch = self
+                    .schemas
+                    .get(&c.schema_id)
+                    .and_then(|(_, encoding, data)| wire_mismatch(&type_name, encoding, data));
                 self.channels.insert(
                     c.id,
                     ChannelInfo {
                         topic: c.topic,
                         type_name,
                         message_encoding: c.message_encoding,
+                        wire_mismatch,
                     },
                 );
             }
@@ -430,6 +462,7 @@ impl RecordingReader {
                     publish_time_ns: header.publish_time,
                     sequence: header.sequence,
                     data: data.into_owned(),
+                    wire_mismatch: ch.wire_mismatch.clone(),
                 }),
                 None => self.orphans += 1,
             },
@@ -897,7 +930,9 @@ mod tests {
     }
 
     /// Recordings made before the ROS 2 schemas (robocog's shape schema, named by the type) read
-    /// as they did: the type comes from the channel's metadata, or else the schema's name.
+    /// as they did: the type comes from the channel's metadata, or else the schema's name. Their
+    /// payloads are of the wire before `std_msgs/Header`, which replay is told (it skips them,
+    /// saying why, rather than publish what this build would misread).
     #[test]
     fn recordings_of_the_earlier_layout_still_read_with_their_types() {
         let p = tmp("earlier.mcap");
@@ -940,6 +975,27 @@ mod tests {
             .collect();
         assert_eq!(got.len(), 2);
         assert!(got.iter().all(|m| m.type_name == "robocog.Text"), "{got:?}");
+        for m in &got {
+            let why = m.wire_mismatch.as_deref().unwrap_or_default();
+            assert!(why.contains("std_msgs/Header"), "{why}");
+        }
+    }
+
+    /// A ROS 2 schema of another build's definition (the header before `std_msgs/Header`) is a
+    /// mismatch; this build's own is none.
+    #[test]
+    fn a_schema_of_another_definition_is_a_wire_mismatch() {
+        let ours = ros_msgs::definitions()
+            .full_definition("robocog.Text")
+            .unwrap();
+        assert_eq!(
+            wire_mismatch("robocog.Text", ROS2_SCHEMA_ENCODING, ours.as_bytes()),
+            None
+        );
+        let old = "robocog_msgs/Header header\nstring text\n";
+        let why = wire_mismatch("robocog.Text", ROS2_SCHEMA_ENCODING, old.as_bytes()).unwrap();
+        assert!(why.contains("another definition of robocog.Text"), "{why}");
+        assert_eq!(wire_mismatch("robocog.Text", "jsonschema", b"{}"), None);
     }
 
     #[test]

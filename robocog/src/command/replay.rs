@@ -563,6 +563,9 @@ impl Outlet {
         if !interfaces::raw::is_valid_type_name(&m.type_name) {
             return Err(format!("no usable type name ({:?})", m.type_name));
         }
+        if let Some(why) = &m.wire_mismatch {
+            return Err(why.clone());
+        }
         Ok(())
     }
 
