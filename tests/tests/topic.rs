@@ -61,6 +61,40 @@ args = ["--role", "listener"]
         "{first}"
     );
     assert!(first["header"]["stamp_ns"].as_i64().unwrap() > 0);
+    // The sequence number, which travels beside the payload, is the talker's count.
+    let n: u64 = first["text"].as_str().unwrap()["hello ".len()..]
+        .parse()
+        .unwrap();
+    assert_eq!(first["header"]["seq"], n, "{first}");
+
+    // --ros: as a ROS 2 decoder reads the same payload (a std_msgs/Header, no sequence number).
+    let out = launch.robocog(
+        &[
+            "topic",
+            "echo",
+            "chatter",
+            "--ros",
+            "--count",
+            "1",
+            "--timeout",
+            "10",
+        ],
+        t,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ros: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&out.stdout).lines().next().unwrap()).unwrap();
+    assert!(
+        ros["header"]["stamp"]["sec"].as_i64().unwrap() > 1_700_000_000,
+        "{ros}"
+    );
+    assert!(ros["header"]["stamp"]["nanosec"].as_u64().unwrap() < 1_000_000_000);
+    assert!(ros["header"].get("seq").is_none(), "{ros}");
+    assert!(ros["text"].as_str().unwrap().starts_with("hello "), "{ros}");
 
     // list shows the topic with its type and both ends.
     let out = launch.robocog(&["topic", "list", "--json"], t);
