@@ -77,21 +77,32 @@ mod tests {
     #[test]
     fn attachments_round_trip_and_bad_ones_say_why() {
         let a = Attachment {
-            sequence: 42,
-            source_timestamp_ns: 1_700_000_000_000_000_001,
-            gid: gid("x"),
+            sequence: 1,
+            source_timestamp_ns: 0x17F0_A1B2_C3D4_E5F6,
+            gid: gid("some token"),
         };
         let bytes = a.encode();
-        assert_eq!(bytes[..8], 42i64.to_le_bytes());
-        assert_eq!(bytes[16], 16);
-        assert_eq!(Attachment::decode(&bytes), Ok(a));
+        assert_eq!(
+            &bytes[..17],
+            &[
+                1, 0, 0, 0, 0, 0, 0, 0, 0xf6, 0xe5, 0xd4, 0xc3, 0xb2, 0xa1, 0xf0, 0x17, 0x10
+            ]
+        );
+        assert_eq!(Attachment::decode(&bytes).unwrap(), a);
         assert!(
             Attachment::decode(&bytes[..32])
                 .unwrap_err()
                 .contains("32 bytes")
         );
-        let mut bad = bytes;
-        bad[16] = 8;
-        assert!(Attachment::decode(&bad).unwrap_err().contains("GID of 8"));
+        let mut wrong = bytes;
+        wrong[16] = 15;
+        assert!(
+            Attachment::decode(&wrong)
+                .unwrap_err()
+                .contains("GID of 15")
+        );
+        // The format before rmw_zenoh 0.2.4 (field names first) is not taken for this one.
+        assert!(Attachment::decode(b"\x0fsequence_number\x01\0\0\0\0\0\0\0").is_err());
+        assert_ne!(gid("a"), gid("b"));
     }
 }

@@ -226,36 +226,4 @@ mod tests {
         assert!(ros_type_name("std_msgs::msg::String").is_none());
         assert!(dds_type_name("robocog.Text").is_none());
     }
-
-    #[test]
-    fn attachments_round_trip_and_bad_ones_say_why() {
-        let a = Attachment {
-            sequence: 1,
-            source_timestamp_ns: 0x17F0_A1B2_C3D4_E5F6,
-            gid: gid("some token"),
-        };
-        let bytes = a.encode();
-        assert_eq!(
-            &bytes[..17],
-            &[
-                1, 0, 0, 0, 0, 0, 0, 0, 0xf6, 0xe5, 0xd4, 0xc3, 0xb2, 0xa1, 0xf0, 0x17, 0x10
-            ]
-        );
-        assert_eq!(Attachment::decode(&bytes).unwrap(), a);
-        assert!(
-            Attachment::decode(&bytes[..32])
-                .unwrap_err()
-                .contains("32 bytes")
-        );
-        let mut wrong = bytes;
-        wrong[16] = 15;
-        assert!(
-            Attachment::decode(&wrong)
-                .unwrap_err()
-                .contains("GID of 15")
-        );
-        // The format before rmw_zenoh 0.2.4 (field names first) is not taken for this one.
-        assert!(Attachment::decode(b"\x0fsequence_number\x01\0\0\0\0\0\0\0").is_err());
-        assert_ne!(gid("a"), gid("b"));
-    }
 }
