@@ -2,8 +2,7 @@
 # What the rmw_zenoh-compatible mode costs: robocog's bus latency p50/p99 (64 B, 4 KiB, 64 KiB)
 # and 8-byte throughput with the ROS 2 bridge off (the peer) and on, and the latency of the same
 # probes as a ROS 2 subscriber on the rmw_zenoh key receives them; then the bytes of the ROS 2
-# schemas a recording carries (its payloads are the bus bytes, unchanged). The last line is one JSON object with
-# the figures. `--quick`: fewer samples.
+# schemas a recording carries. The last line is one JSON object with the figures. `--quick`: fewer samples.
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
@@ -11,7 +10,9 @@ step "building the ROS 2 bridge benchmark and robocog (release)"
 cargo build --release -p ros2_bridge --example bench_ros2 -p robocog
 quick=()
 for a in "$@"; do [ "$a" = "--quick" ] && quick=(--quick); done
-bus_json="$("$BIN/examples/bench_ros2" "${quick[@]}" | tee /dev/stderr | tail -n 1)"
+# The table goes to this script's stderr as it is (tee to /dev/stderr would reopen a log file at
+# its start and write over it).
+bus_json="$("$BIN/examples/bench_ros2" "${quick[@]}" | tee >(cat >&2) | tail -n 1)"
 # The schema bytes of a recording: one schema per type, as `robocog record` writes them.
 schema_json="$("$BIN/robocog" interface list --json | python3 -c '
 import json, subprocess, sys
