@@ -245,18 +245,17 @@ pub struct Recorded {
 }
 
 /// Why payloads recorded under this schema would not read as `type_name` of this build: the
-/// schema is the type's ROS 2 definition of another build, or robocog's JSON shape (written
-/// before the payloads carried ROS 2's standard types, `std_msgs/Header` first).
+/// schema is the type's ROS 2 definition of another build, or robocog's JSON shape for a type
+/// this build records with its ROS 2 definition (so an older robocog wrote it, before the
+/// payloads carried ROS 2's standard types, `std_msgs/Header` first).
 pub fn wire_mismatch(type_name: &str, encoding: &str, data: &[u8]) -> Option<String> {
+    let ours = ros_msgs::definitions().full_definition(type_name).ok()?;
     match encoding {
-        ROS2_SCHEMA_ENCODING => {
-            let ours = ros_msgs::definitions().full_definition(type_name).ok()?;
-            (ours.as_bytes() != data).then(|| {
-                format!(
-                    "recorded with another definition of {type_name} than this build's (see `robocog interface show {type_name}`): replay it with the robocog that recorded it"
-                )
-            })
-        }
+        ROS2_SCHEMA_ENCODING => (ours.as_bytes() != data).then(|| {
+            format!(
+                "recorded with another definition of {type_name} than this build's (see `robocog interface show {type_name}`): replay it with the robocog that recorded it"
+            )
+        }),
         SCHEMA_ENCODING => Some(format!(
             "recorded before robocog's payloads carried ROS 2's standard types (its {type_name} header is not a std_msgs/Header): replay it with the robocog that recorded it"
         )),
@@ -996,6 +995,8 @@ mod tests {
         let why = wire_mismatch("robocog.Text", ROS2_SCHEMA_ENCODING, old.as_bytes()).unwrap();
         assert!(why.contains("another definition of robocog.Text"), "{why}");
         assert_eq!(wire_mismatch("robocog.Text", "jsonschema", b"{}"), None);
+        // A type this build does not know: nothing to compare with.
+        assert_eq!(wire_mismatch("robocog.Nope", SCHEMA_ENCODING, b"{}"), None);
     }
 
     #[test]
