@@ -131,6 +131,8 @@ pub struct Vad {
     floor_db: Option<f64>,
     /// Whether the stream began with digital silence (before any floor was set).
     silence_first: bool,
+    /// After digital silence, the levels of the room's first frames (see [`SETTLE_FRAMES`]).
+    settling: Vec<f64>,
     loud_run: usize,
     open: Option<Open>,
     /// Stream position of the first sample of `pending`.
@@ -150,6 +152,25 @@ const SILENCE_DBFS: f64 = -100.0;
 const QUIET_ROOM_DBFS: f64 = -40.0;
 
 /// Power of a frame in dBFS (−100 for digital silence).
+/// The room's frames after digital silence whose median is the first floor (50 ms).
+const SETTLE_FRAMES: usize = 5;
+
+/// Exact zeros in a row (2 ms) that make a frame partly digital silence: a room's noise, or
+/// speech, never holds a sample at exactly zero for so long.
+const PARTLY_SILENT_RUN: usize = 32;
+
+/// Whether `frame` holds `run` exact zeros in a row.
+fn has_zero_run(frame: &[i16], run: usize) -> bool {
+    let mut n = 0;
+    for &s in frame {
+        n = if s == 0 { n + 1 } else { 0 };
+        if n >= run {
+            return true;
+        }
+    }
+    false
+}
+
 pub fn level_dbfs(frame: &[i16]) -> f64 {
     if frame.is_empty() {
         return -100.0;
@@ -174,6 +195,7 @@ impl Vad {
             levels: VecDeque::new(),
             floor_db: None,
             silence_first: false,
+            settling: Vec::new(),
             loud_run: 0,
             open: None,
             pos: 0,
@@ -335,18 +357,34 @@ impl Vad {
         // that starts with it gets its floor from the first frame that is not silent when that
         // one is as quiet as a room (below QUIET_ROOM_DBFS); a louder one is a sound, heard
         // against silence. A stream that starts with sound sets the floor from it, as before
-        // (it falls at once to the first quieter frame).
+        // (it falls at once to the first quieter frame). A frame that is partly digital silence
+        // (the sound starts or stops inside it) measures neither: its level is the sound's
+        // diluted by zeros, and a floor set from it would sit under the room (the room's noise
+        // starting after an echo canceller's first silent chunks would then be heard as speech).
+        // Nor does the room's first frame alone: a sound server's stream can fade in, an echo
+        // canceller's noise comes up over a few frames. So the floor after digital silence is
+        // the median of the room's first SETTLE_FRAMES, none of them loud.
         let silent = raw <= SILENCE_DBFS;
+        let partly_silent = !silent && has_zero_run(&f, PARTLY_SILENT_RUN);
         if silent && self.floor_db.is_none() {
             self.silence_first = true;
         }
+        let settling = self.floor_db.is_none()
+            && self.silence_first
+            && !silent
+            && !partly_silent
+            && raw < QUIET_ROOM_DBFS;
         let floor = match self.floor_db {
             Some(f) => f,
-            None if !silent && (raw < QUIET_ROOM_DBFS || !self.silence_first) => raw,
+            None if settling => {
+                self.settling.push(raw);
+                self.settling.iter().copied().fold(f64::MIN, f64::max)
+            }
+            None if !silent && !partly_silent && !self.silence_first => raw,
             None => SILENCE_DBFS,
         };
         let rise = self.cfg.floor_rise_db_per_s * FRAME as f64 / RATE_HZ as f64;
-        let new_floor = if silent {
+        let new_floor = if silent || (partly_silent && raw < floor) {
             floor
         } else if raw < floor {
             raw
@@ -355,7 +393,13 @@ impl Vad {
         } else {
             floor + rise
         };
-        if !(silent && self.floor_db.is_none()) {
+        if settling {
+            if self.settling.len() >= SETTLE_FRAMES {
+                let mut v = std::mem::take(&mut self.settling);
+                v.sort_by(f64::total_cmp);
+                self.floor_db = Some(v[v.len() / 2]);
+            }
+        } else if !((silent || partly_silent) && self.floor_db.is_none()) {
             self.floor_db = Some(new_floor);
         }
         let above = level - floor;
@@ -510,6 +554,48 @@ mod tests {
         assert!(a.end_s() > 3.8 && a.end_s() < 4.1, "{}", a.end_s());
         let floor = vad.floor_dbfs().unwrap();
         assert!((floor + 50.0).abs() < 3.0, "{floor}");
+    }
+
+    /// An echo canceller's output: digital silence, then the room's noise from the middle of a
+    /// frame on (20 samples of it in the first). That frame is no measure of the room: a floor
+    /// set from it would sit 9 dB under the noise, which would be heard as an utterance.
+    #[test]
+    fn noise_starting_inside_a_frame_or_fading_in_after_digital_silence_is_the_floor() {
+        let mut stream = vec![0i16; 16000 + 140];
+        let p = 10f64.powf(-6.2); // -62 dBFS
+        stream.extend(with_noise(vec![0i16; 32000], p, 5));
+        let mut vad = Vad::new(VadConfig::default());
+        let mut segs = vec![];
+        for c in stream.chunks(320) {
+            segs.extend(vad.push(c));
+        }
+        segs.extend(vad.flush());
+        let times: Vec<(f64, f64)> = segs.iter().map(|s| (s.start_s(), s.end_s())).collect();
+        assert!(segs.is_empty(), "utterances in the room's noise: {times:?}");
+        let floor = vad.floor_dbfs().unwrap();
+        assert!((floor + 62.0).abs() < 3.0, "{floor}");
+
+        // The same noise fading in over 30 ms (no frame of it partly silent): the floor is the
+        // room's, not the fade's first frame.
+        let mut stream = vec![0i16; 16000];
+        let mut room = with_noise(vec![0i16; 32000], p, 6);
+        for (k, x) in room.iter_mut().take(480).enumerate() {
+            *x = (f64::from(*x) * (k + 1) as f64 / 480.0).round() as i16;
+        }
+        stream.extend(room);
+        let mut vad = Vad::new(VadConfig::default());
+        let mut segs = vec![];
+        for c in stream.chunks(320) {
+            segs.extend(vad.push(c));
+        }
+        segs.extend(vad.flush());
+        let times: Vec<(f64, f64)> = segs.iter().map(|s| (s.start_s(), s.end_s())).collect();
+        assert!(
+            segs.is_empty(),
+            "utterances in the fading-in noise: {times:?}"
+        );
+        let floor = vad.floor_dbfs().unwrap();
+        assert!((floor + 62.0).abs() < 3.0, "{floor}");
     }
 
     #[test]
