@@ -213,7 +213,11 @@ impl Launch {
             .arg("--state-root")
             .arg(scratch(namespace).join("state"))
             .args(extra)
-            .env("RUST_LOG", "info")
+            // `ROBOCOG_TEST_LOG` (a `RUST_LOG` filter) to see more of a graph under test.
+            .env(
+                "RUST_LOG",
+                std::env::var("ROBOCOG_TEST_LOG").unwrap_or_else(|_| "info".into()),
+            )
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())

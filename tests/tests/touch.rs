@@ -296,12 +296,14 @@ async fn touch_a_still_ball_with_every_sound_through_a_sound_server() {
 /// on one recording that hears the loudspeaker and the person apart), the sentence is reported
 /// interrupted, and the game ends.
 ///
-/// Ignored: it fails. While the server's canceller adapts (the robot's first seconds of speech),
-/// what it lets through of the robot's voice is heard as sustained speech and decoded as
-/// commands with confidences up to 0.85 ("no", "stop", "hello"), so the robot pauses for its own
-/// voice and the dialog cuts its first sentence. See ARCHITECTURE.md, "The robot's own voice".
+/// Ignored: it passes about one run in four. `audio_io`'s double-talk detector takes most of
+/// what the canceller lets through of the robot out of `audio/in`, but bursts of it as loud
+/// against the microphone as the player's own voice still pass, and are decoded as commands
+/// ("no", "stop", "correct"); the robot then pauses for its own voice, or the player's "stop"
+/// reaches the recognizer cut. See ARCHITECTURE.md, "The robot's own voice".
+/// `ROBOCOG_TEST_LOG=info,audio_io::double_talk=trace` shows the detector frame by frame.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[ignore = "fails: the echo canceller's leaks while it adapts are taken for the player's speech"]
+#[ignore = "flaky: bursts of the robot's voice past the echo canceller are taken for the player's"]
 async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
     let server = SoundServer::start_room("barge-in");
     let tap = server.log.with_file_name("tap.raw");
@@ -336,14 +338,15 @@ async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
     );
     assert!(
         !game.said.iter().any(|t| t.contains("did you say")),
-        "a question was asked: {:?}",
-        game.said
+        "a question was asked: {:?}\n{}\noutput:\n{out}",
+        game.said,
+        game.timeline.join("\n")
     );
     let pcm = std::fs::read(&tap).expect("the tap's recording");
     // The canceller adapts during the robot's first sentence: what it lets through of the robot
     // must not make the robot stop for its own voice.
     barge_in::first_played_whole(&pcm, executive::touch::say::GREETING)
-        .unwrap_or_else(|e| panic!("{e}\n{}", game.timeline.join("\n")));
+        .unwrap_or_else(|e| panic!("{e}\n{}\noutput:\n{out}", game.timeline.join("\n")));
     let cut = barge_in::measure(&pcm, executive::touch::say::PLAY_ACK)
         .unwrap_or_else(|e| panic!("{e}\ngame: {game:?}\noutput:\n{out}"));
     println!(

@@ -2,10 +2,11 @@
 //! (`audio/out` to the speaker) around the bus loop. See the crate doc for what is counted and
 //! what happens when a device goes away.
 
+use crate::double_talk::{self, Armed, DoubleTalk, RobotVoice};
 use interfaces::msg::speech::{AudioChunk, SpeakingState, VoiceState};
 use interfaces::node::{Component, Interface, config_error};
 use interfaces::{Bus, Shutdown, topics};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -25,6 +26,18 @@ pub enum EchoCancel {
     /// The sound server's WebRTC canceller (`module-echo-cancel`), loaded between the microphone
     /// and the speaker for as long as this runs: the player can talk over the robot.
     Webrtc,
+}
+
+/// What is done with the robot's voice the echo canceller leaves in the microphone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ResidualEcho {
+    /// Tell the player's voice from the canceller's leftovers (double-talk detection, on the
+    /// microphone captured as it is beside the canceller's output) and take the leftovers out of
+    /// audio/in; until the canceller has shown it removes the robot's voice, everything heard
+    /// while the robot speaks is taken out.
+    Suppress,
+    /// Leave audio/in as the canceller makes it.
+    Keep,
 }
 
 /// The `audio_io` flags.
@@ -76,6 +89,10 @@ pub struct Config {
     /// How long after the person stopped speaking a paused sentence goes on (s).
     #[arg(long, default_value_t = 0.8)]
     pub resume_after_s: f64,
+    /// With `--echo-cancel webrtc`: what is done with what the canceller leaves of the robot's
+    /// voice (the counters `echo_suppressed_frames` and `double_talk_frames` say how often).
+    #[arg(long, value_enum, default_value_t = ResidualEcho::Suppress)]
+    pub residual_echo: ResidualEcho,
 }
 
 /// The longest a sentence stays paused for speech whose end is never heard (the recognizer
@@ -375,10 +392,42 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             .spawn(move || watch_devices(&config, &stop, &presence))?
     };
     let (heard_tx, mut heard_rx) = tokio::sync::mpsc::channel::<Heard>(64);
+    let voice = Arc::new(VoiceClock::new(
+        double_talk::Config::at(config.rate_hz).tail_s,
+    ));
     let mut capture_thread = None;
+    let mut raw_thread = None;
     if let Some(capture) = capture {
+        let detector = if config.echo_cancel != EchoCancel::None
+            && config.residual_echo == ResidualEcho::Suppress
+        {
+            // Half a second of the microphone's chunks: the capture thread takes them every
+            // chunk.
+            let depth = (500 / config.chunk_ms.max(1)).max(4) as usize;
+            let (raw_tx, raw_rx) = std::sync::mpsc::sync_channel(depth);
+            let rate_hz = config.rate_hz;
+            let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
+            let (presence, echo, voice) = (presence.clone(), echo.clone(), voice.clone());
+            raw_thread = Some(
+                std::thread::Builder::new()
+                    .name("microphone-raw".into())
+                    .spawn(move || {
+                        let loops = Loops {
+                            config: &config,
+                            echo: &echo,
+                            presence: &presence,
+                            counters: &counters,
+                            voice: &voice,
+                        };
+                        raw_microphone_loop(&loops, &stop, &raw_tx)
+                    })?,
+            );
+            Some(Detector::new(raw_rx, rate_hz, bus.counters()))
+        } else {
+            None
+        };
         let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
-        let (presence, echo) = (presence.clone(), echo.clone());
+        let (presence, echo, voice) = (presence.clone(), echo.clone(), voice.clone());
         capture_thread = Some(
             std::thread::Builder::new()
                 .name("microphone".into())
@@ -388,8 +437,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         echo: &echo,
                         presence: &presence,
                         counters: &counters,
+                        voice: &voice,
                     };
-                    capture_loop(capture, &loops, &stop, &heard_tx)
+                    capture_loop(capture, &loops, &stop, &heard_tx, detector)
                 })?,
         );
     } else {
@@ -411,11 +461,12 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         // Control messages are few (one per sentence cut, per pause, per going on) and looked
         // at every slice: a full queue would be a stuck playback thread.
         let (ctx, crx) = std::sync::mpsc::sync_channel::<Ctl>(64);
-        let (config, counters, presence, echo) = (
+        let (config, counters, presence, echo, voice) = (
             config.clone(),
             bus.counters().clone(),
             presence.clone(),
             echo.clone(),
+            voice.clone(),
         );
         play_thread = Some(std::thread::Builder::new().name("speaker".into()).spawn(
             move || {
@@ -424,6 +475,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     echo: &echo,
                     presence: &presence,
                     counters: &counters,
+                    voice: &voice,
                 };
                 playback_loop(&loops, &rx, &crx)
             },
@@ -585,7 +637,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     drop(ctl_tx);
     // Both threads notice within one chunk or one reopen attempt; they are not waited for longer
     // than that (a stuck server must not hold the shutdown).
-    for t in [capture_thread, play_thread, Some(watcher)]
+    for t in [capture_thread, raw_thread, play_thread, Some(watcher)]
         .into_iter()
         .flatten()
     {
@@ -613,20 +665,209 @@ struct Loops<'a> {
     echo: &'a Echo,
     presence: &'a Presence,
     counters: &'a interfaces::bus::Counters,
+    voice: &'a VoiceClock,
 }
 
-/// Read the microphone until `stop`, reopening it when it fails.
+/// When the robot's voice may be in the room, on a clock the capture threads share with the
+/// playback thread (ns since `origin`): the double-talk detector's [`RobotVoice`].
+#[derive(Debug)]
+struct VoiceClock {
+    origin: Instant,
+    from_ns: AtomicI64,
+    until_ns: AtomicI64,
+    tail: Duration,
+}
+
+impl VoiceClock {
+    fn new(tail_s: f64) -> Self {
+        Self {
+            origin: Instant::now(),
+            from_ns: AtomicI64::new(0),
+            until_ns: AtomicI64::new(0),
+            tail: Duration::from_secs_f64(tail_s),
+        }
+    }
+
+    fn ns(&self, t: Instant) -> i64 {
+        i64::try_from(t.saturating_duration_since(self.origin).as_nanos()).unwrap_or(i64::MAX)
+    }
+
+    /// When the first sample of a chunk of `frames` at `rate_hz` just read was heard, the stream
+    /// saying its last one waited `latency_us`.
+    fn heard_ns(&self, frames: usize, rate_hz: u32, latency_us: u64) -> i64 {
+        let chunk = frames as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+        self.ns(Instant::now()) - chunk - latency_us as i64 * 1000
+    }
+
+    /// What was written plays until `until`.
+    fn playing_until(&self, until: Instant) {
+        let now = self.ns(Instant::now());
+        if self.until_ns.load(Ordering::Relaxed) <= now {
+            self.from_ns.store(now, Ordering::Relaxed);
+        }
+        self.until_ns
+            .store(self.ns(until + self.tail), Ordering::Relaxed);
+    }
+
+    /// What the server held was thrown away: the voice ends with what is already in the room.
+    fn stopped(&self) {
+        let end = self.ns(Instant::now() + self.tail);
+        self.until_ns.fetch_min(end, Ordering::Relaxed);
+    }
+
+    fn voice(&self) -> RobotVoice {
+        RobotVoice {
+            from_ns: self.from_ns.load(Ordering::Relaxed),
+            until_ns: self.until_ns.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// The microphone as it is (the canceller's master source), for the double-talk detector: what
+/// it hears, with when, until `stop`. A failure is retried every `--reopen-s` without a word
+/// beyond a log line: the detector then takes everything heard while the robot speaks for the
+/// robot's, which is safe.
+fn raw_microphone_loop(
+    loops: &Loops,
+    stop: &AtomicBool,
+    tx: &std::sync::mpsc::SyncSender<(i64, Vec<i16>)>,
+) {
+    let config = loops.config;
+    let open = || {
+        pulse::Capture::open(
+            config.server(),
+            &config.source,
+            config.rate_hz,
+            1,
+            config.chunk_frames(),
+            "robot microphone, as heard (double-talk detection)",
+        )
+    };
+    let mut capture = match open() {
+        Ok(c) => c,
+        Err(e) => {
+            tracing::warn!(
+                "cannot open the microphone {:?} beside the echo canceller: {e}; until it opens, \
+                 what is heard while the robot speaks is taken for the robot's voice",
+                config.source
+            );
+            match reopen(config, stop, open) {
+                Some(c) => c,
+                None => return,
+            }
+        }
+    };
+    let mut samples = Vec::new();
+    while !stop.load(Ordering::Relaxed) {
+        match capture.read(&mut samples) {
+            Ok(()) => {
+                let latency = capture.latency_us().unwrap_or(0);
+                let t = loops.voice.heard_ns(samples.len(), config.rate_hz, latency);
+                match tx.try_send((t, std::mem::take(&mut samples))) {
+                    Ok(()) => {}
+                    Err(std::sync::mpsc::TrySendError::Full(_)) => {
+                        loops.counters.incr("double_talk_microphone_overruns");
+                    }
+                    Err(std::sync::mpsc::TrySendError::Disconnected(_)) => return,
+                }
+            }
+            Err(e) => {
+                tracing::warn!(
+                    "lost the microphone {:?} beside the echo canceller: {e}; opening it again",
+                    config.source
+                );
+                match reopen(config, stop, open) {
+                    Some(c) => capture = c,
+                    None => return,
+                }
+            }
+        }
+    }
+}
+
+/// The double-talk detector of the capture thread, and the microphone's frames it is fed.
+struct Detector {
+    dt: DoubleTalk,
+    raw: std::sync::mpsc::Receiver<(i64, Vec<i16>)>,
+    /// The time of the end of the microphone's last frame given to `dt`.
+    raw_until_ns: i64,
+    /// The counters `echo_suppressed_frames` and `double_talk_frames`.
+    suppressed: Arc<std::sync::atomic::AtomicU64>,
+    player: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl Detector {
+    fn new(
+        raw: std::sync::mpsc::Receiver<(i64, Vec<i16>)>,
+        rate_hz: u32,
+        counters: &interfaces::bus::Counters,
+    ) -> Self {
+        Self {
+            dt: DoubleTalk::new(double_talk::Config::at(rate_hz)),
+            raw,
+            raw_until_ns: i64::MIN,
+            suppressed: counters.counter("echo_suppressed_frames"),
+            player: counters.counter("double_talk_frames"),
+        }
+    }
+
+    /// A chunk of the canceller's output heard at `t_ns`, its residue of the robot's voice
+    /// taken out.
+    fn process(&mut self, loops: &Loops, t_ns: i64, samples: &mut [i16]) {
+        let rate = loops.config.rate_hz;
+        let cfg = self.dt.config().clone();
+        let end = t_ns + samples.len() as i64 * 1_000_000_000 / i64::from(rate);
+        // The microphone's frames up to a little after this chunk: they were heard at the same
+        // time (the canceller's output comes later), but their thread may not have run yet.
+        let deadline = Instant::now() + Duration::from_millis(20);
+        loop {
+            while let Ok((t, raw)) = self.raw.try_recv() {
+                self.raw_until_ns = t + raw.len() as i64 * 1_000_000_000 / i64::from(rate);
+                self.dt.mic(t, &raw);
+            }
+            if self.raw_until_ns >= end + cfg.window_after_ns.min(cfg.frame_ns)
+                || Instant::now() >= deadline
+            {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let o = self.dt.process(t_ns, samples, loops.voice.voice());
+        self.suppressed
+            .fetch_add(u64::from(o.suppressed_frames), Ordering::Relaxed);
+        self.player
+            .fetch_add(u64::from(o.player_frames), Ordering::Relaxed);
+        match self.dt.armed_changed() {
+            Some(Armed::Yes(erle)) => tracing::info!(
+                "the echo canceller takes {erle:.0} dB of the robot's voice out of the \
+                 microphone: the player can talk over the robot"
+            ),
+            Some(Armed::No(erle)) => tracing::warn!(
+                "the echo canceller takes only {erle:.0} dB of the robot's voice out (at least \
+                 {:.0} dB needed): what the microphone hears while the robot speaks is taken \
+                 for the robot's voice until it does better",
+                cfg.armed_erle_db
+            ),
+            None => {}
+        }
+    }
+}
+
+/// Read the microphone until `stop`, reopening it when it fails; with a detector, the robot's
+/// voice the canceller left in is taken out first.
 fn capture_loop(
     (mut capture, mut generation): (pulse::Capture, u64),
     loops: &Loops,
     stop: &AtomicBool,
     tx: &tokio::sync::mpsc::Sender<Heard>,
+    mut detector: Option<Detector>,
 ) {
     let Loops {
         config,
         echo,
         presence,
         counters,
+        ..
     } = *loops;
     let mut samples = Vec::new();
     while !stop.load(Ordering::Relaxed) {
@@ -640,6 +881,10 @@ fn capture_loop(
             Ok(()) => {
                 counters.incr("capture_chunks");
                 let latency = capture.latency_us().unwrap_or(0);
+                if let Some(d) = detector.as_mut() {
+                    let t = loops.voice.heard_ns(samples.len(), config.rate_hz, latency);
+                    d.process(loops, t, &mut samples);
+                }
                 match tx.try_send(Heard::Chunk(std::mem::take(&mut samples), latency)) {
                     Ok(()) => {}
                     Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
@@ -662,6 +907,12 @@ fn capture_loop(
                 let Some(again) = reopen(config, stop, open) else {
                     return;
                 };
+                if again.1 != generation
+                    && let Some(d) = detector.as_mut()
+                {
+                    // A fresh canceller adapts from the start.
+                    d.dt = DoubleTalk::new(double_talk::Config::at(config.rate_hz));
+                }
                 (capture, generation) = again;
                 if tx.blocking_send(Heard::Back).is_err() {
                     return;
@@ -830,6 +1081,7 @@ impl Player<'_> {
         if playing || held {
             s.in_sentence = false;
             self.loops.counters.incr("playback_cut");
+            self.loops.voice.stopped();
             if let Err(e) = s.stream.flush() {
                 self.failed(&e);
             }
@@ -850,6 +1102,7 @@ impl Player<'_> {
         }
         // What the server holds and has not played yet, taken back.
         let queued_us = s.stream.latency_us().unwrap_or(0);
+        self.loops.voice.stopped();
         if let Err(e) = s.stream.flush() {
             self.failed(&e);
             return;
@@ -1010,6 +1263,7 @@ impl Player<'_> {
             }
             until = until.max(Instant::now()) + duration(data.len());
             s.queued_until = Some(until);
+            self.loops.voice.playing_until(until);
             s.recent.extend(data.iter().copied());
             let excess = s.recent.len().saturating_sub(keep);
             s.recent.drain(..excess);

@@ -24,7 +24,7 @@
 //! a virtual source `mic` on its monitor, and a null sink `speaker` heard in the room through a
 //! loop-back). Prints a table, then one JSON line.
 
-use audio_io::component::{self, Config, Driver, EchoCancel};
+use audio_io::component::{self, Config, Driver, EchoCancel, ResidualEcho};
 use clap::Parser;
 use interfaces::msg::speech::AudioChunk;
 use interfaces::node::Shutdown;
@@ -136,6 +136,7 @@ async fn start_audio_io(
     source: &str,
     sink: &str,
     echo_cancel: EchoCancel,
+    residual_echo: ResidualEcho,
 ) -> anyhow::Result<(
     Box<dyn std::any::Any + Send>,
     Bus,
@@ -158,6 +159,7 @@ async fn start_audio_io(
         echo_cancel,
         pause_on_speech: false,
         resume_after_s: 0.8,
+        residual_echo,
     };
     let prepared = component::prepare(config)?;
     let component_bus = Bus::open(&connect, "audio_io").await?;
@@ -171,15 +173,16 @@ async fn start_audio_io(
 /// the rest.
 async fn echo(
     args: &Args,
-    mode: EchoCancel,
+    (mode, residual): (EchoCancel, ResidualEcho),
     sentences: &[Vec<i16>],
 ) -> anyhow::Result<(Echo, Echo)> {
     let (_router, bus, stop, running) = start_audio_io(
         args,
-        &format!("bench-echo-{}-{mode:?}", std::process::id()),
+        &format!("bench-echo-{}-{mode:?}-{residual:?}", std::process::id()),
         &args.echo_mic,
         &args.echo_speaker,
         mode,
+        residual,
     )
     .await?;
     let out = bus.publisher(&topics::AUDIO_OUT).await?;
@@ -351,6 +354,7 @@ async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
         &args.source,
         &args.sink,
         EchoCancel::None,
+        ResidualEcho::Keep,
     )
     .await?;
     let out = bus.publisher(&topics::AUDIO_OUT).await?;
@@ -435,8 +439,15 @@ async fn main() -> anyhow::Result<()> {
         args.echo_speaker,
         args.echo_mic
     );
-    let (_, none) = echo(&args, EchoCancel::None, &sentences).await?;
-    let (aec_first, aec) = echo(&args, EchoCancel::Webrtc, &sentences).await?;
+    let (_, none) = echo(&args, (EchoCancel::None, ResidualEcho::Keep), &sentences).await?;
+    let (aec_first, aec) =
+        echo(&args, (EchoCancel::Webrtc, ResidualEcho::Keep), &sentences).await?;
+    let (sup_first, sup) = echo(
+        &args,
+        (EchoCancel::Webrtc, ResidualEcho::Suppress),
+        &sentences,
+    )
+    .await?;
     println!();
     println!(
         "| the robot's voice | in the room dBFS | on audio/in dBFS | ERLE dB | audio/in frames over {VAD_FLOOR_DBFS} dBFS |"
@@ -446,6 +457,14 @@ async fn main() -> anyhow::Result<()> {
         ("no canceller (the peer)", none),
         ("WebRTC canceller, first sentence (adapting)", aec_first),
         ("WebRTC canceller, the next sentences", aec),
+        (
+            "canceller and double-talk suppressor, first sentence",
+            sup_first,
+        ),
+        (
+            "canceller and double-talk suppressor, the next sentences",
+            sup,
+        ),
     ] {
         println!(
             "| {name} | {:.1} | {:.1} | {:.1} | {:.1} % |",
@@ -466,6 +485,8 @@ async fn main() -> anyhow::Result<()> {
             "echo_frames_over_vad_floor_pct": round1(aec.frames_over_floor_pct),
             "echo_adapting_erle_db": round1(aec_first.erle_db()),
             "echo_adapting_frames_over_vad_floor_pct": round1(aec_first.frames_over_floor_pct),
+            "suppressed_frames_over_vad_floor_pct": round1(sup.frames_over_floor_pct),
+            "suppressed_adapting_frames_over_vad_floor_pct": round1(sup_first.frames_over_floor_pct),
             "peer_no_canceller_erle_db": round1(none.erle_db()),
             "peer_no_canceller_frames_over_vad_floor_pct": round1(none.frames_over_floor_pct),
             "erle_gain_db_vs_no_canceller": round1(aec.erle_db() - none.erle_db()),
