@@ -316,6 +316,7 @@ async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
             "microphone=room.monitor",
             "speaker=speaker",
             "echo_cancel=webrtc",
+            "residual_echo=suppress",
             "barge_in=true",
             "person_voice=pulse",
             "person_room=person",

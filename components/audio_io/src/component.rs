@@ -91,7 +91,9 @@ pub struct Config {
     pub resume_after_s: f64,
     /// With `--echo-cancel webrtc`: what is done with what the canceller leaves of the robot's
     /// voice (the counters `echo_suppressed_frames` and `double_talk_frames` say how often).
-    #[arg(long, value_enum, default_value_t = ResidualEcho::Suppress)]
+    /// `suppress` is for barge-in, and experimental: bursts of the robot's voice still pass, and
+    /// the player's first 60 ms over the robot (or just after it) are cut.
+    #[arg(long, value_enum, default_value_t = ResidualEcho::Keep)]
     pub residual_echo: ResidualEcho,
 }
 

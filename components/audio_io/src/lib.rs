@@ -36,7 +36,7 @@
 //!   taken out of `audio/in` and anything else in the room stays. A canceller left by a killed
 //!   `audio_io` is replaced; one the server unloaded with a lost device is loaded again when the
 //!   device is back. What the canceller leaves of the robot's voice is taken out of `audio/in`
-//!   by a double-talk detector ([`double_talk`], `--residual-echo suppress`, the default), which
+//!   by a double-talk detector ([`double_talk`], `--residual-echo suppress`, experimental), which
 //!   also captures the microphone as it is to compare: counted as `echo_suppressed_frames`, and
 //!   the frames taken for the player's voice over the robot's as `double_talk_frames`; whether
 //!   the canceller removes enough of the robot for the player to talk over it is logged when it
