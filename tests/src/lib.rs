@@ -537,19 +537,16 @@ pub struct SoundServer {
 }
 
 /// What [`SoundServer::start_room`] adds to the room: the robot's loudspeaker and the person's
-/// mouth as sinks of their own, each heard in the room (a loop-back into `room`, 20 ms of air),
-/// and a stereo `tap` that hears the loudspeaker on the left and the person on the right, for a
-/// test to measure one against the other on one clock.
+/// mouth as sinks of their own, the left and the right channel of a stereo `tap` that a test
+/// records to measure one against the other on one clock; the tap is heard in the room (one
+/// loop-back into `room`, 20 ms of air).
 const ROOM_WITH_SPEAKER: &str = "\
-    load-module module-null-sink sink_name=speaker rate=48000 channels=2\n\
-    load-module module-null-sink sink_name=person rate=48000 channels=2\n\
     load-module module-null-sink sink_name=tap rate=48000 channels=2\n\
-    load-module module-loopback source=speaker.monitor sink=room latency_msec=20\n\
-    load-module module-loopback source=person.monitor sink=room latency_msec=20\n\
-    load-module module-loopback source=speaker.monitor sink=tap latency_msec=20 channels=1 \
-        channel_map=front-left remix=no\n\
-    load-module module-loopback source=person.monitor sink=tap latency_msec=20 channels=1 \
-        channel_map=front-right remix=no\n";
+    load-module module-remap-sink sink_name=speaker master=tap channels=1 channel_map=mono \
+        master_channel_map=front-left remix=no\n\
+    load-module module-remap-sink sink_name=person master=tap channels=1 channel_map=mono \
+        master_channel_map=front-right remix=no\n\
+    load-module module-loopback source=tap.monitor sink=room latency_msec=20\n";
 
 impl SoundServer {
     /// Start one for the test `tag`, waiting (10 s at most) until it answers.
@@ -560,7 +557,10 @@ impl SoundServer {
     /// A room where the robot's voice and the person's come from sinks of their own (`speaker`
     /// and `person`), so that an echo canceller can take the robot's voice out of what the
     /// microphone (`room.monitor`) hears, with `tap.monitor` hearing both apart (left: the
-    /// loudspeaker, right: the person).
+    /// loudspeaker, right: the person). The two sinks are the two channels of the tap itself,
+    /// heard in the room through one loop-back: the tap hears them on one clock, and the
+    /// microphone hears them with one delay (two loop-backs' latencies drift apart by tens of
+    /// milliseconds).
     pub fn start_room(tag: &str) -> SoundServer {
         Self::start_with(tag, ROOM_WITH_SPEAKER)
     }

@@ -2,11 +2,11 @@
 //! (`audio/out` to the speaker) around the bus loop. See the crate doc for what is counted and
 //! what happens when a device goes away.
 
-use crate::double_talk::{self, Armed, DoubleTalk, RobotVoice};
+use crate::double_talk::{self, DoubleTalk};
 use interfaces::msg::speech::{AudioChunk, SpeakingState, VoiceState};
 use interfaces::node::{Component, Interface, config_error};
 use interfaces::{Bus, Shutdown, topics};
-use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -31,10 +31,10 @@ pub enum EchoCancel {
 /// What is done with the robot's voice the echo canceller leaves in the microphone.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ResidualEcho {
-    /// Tell the player's voice from the canceller's leftovers (double-talk detection, on the
-    /// microphone captured as it is beside the canceller's output) and take the leftovers out of
-    /// audio/in; until the canceller has shown it removes the robot's voice, everything heard
-    /// while the robot speaks is taken out.
+    /// Tell the player's voice from the robot's (double-talk detection: the microphone captured
+    /// as it is, beside the canceller's output, against what the robot played) and take what
+    /// the canceller leaves of the robot out of audio/in; before the echo path is measured (the
+    /// robot's first second of speech), everything heard while the robot speaks is taken out.
     Suppress,
     /// Leave audio/in as the canceller makes it.
     Keep,
@@ -91,15 +91,19 @@ pub struct Config {
     pub resume_after_s: f64,
     /// With `--echo-cancel webrtc`: what is done with what the canceller leaves of the robot's
     /// voice (the counters `echo_suppressed_frames` and `double_talk_frames` say how often).
-    /// `suppress` is for barge-in, and experimental: bursts of the robot's voice still pass, and
-    /// the player's first 60 ms over the robot (or just after it) are cut.
-    #[arg(long, value_enum, default_value_t = ResidualEcho::Keep)]
+    /// With `--pause-on-speech`, the robot also yields the moment the detector hears the player
+    /// over it.
+    #[arg(long, value_enum, default_value_t = ResidualEcho::Suppress)]
     pub residual_echo: ResidualEcho,
 }
 
 /// The longest a sentence stays paused for speech whose end is never heard (the recognizer
 /// went away): longer than the end-pointer's longest utterance.
 const PAUSED_AT_MOST: Duration = Duration::from_secs(10);
+
+/// How long a sentence paused by the double-talk detector waits for the recognizer to say speech
+/// started before it goes on.
+const DETECTED_PAUSE: Duration = Duration::from_millis(1500);
 
 impl Config {
     fn server(&self) -> Option<&str> {
@@ -350,6 +354,8 @@ fn gone(kind: pulse::Kind, name: &str) -> pulse::Error {
 enum Heard {
     /// A chunk, and how long its last sample waited before it was read (µs).
     Chunk(Vec<i16>, u64),
+    /// The double-talk detector heard the player start speaking over the robot.
+    PlayerOverRobot,
     /// The microphone failed (why).
     Lost(String),
     /// The microphone is open again.
@@ -394,20 +400,30 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             .spawn(move || watch_devices(&config, &stop, &presence))?
     };
     let (heard_tx, mut heard_rx) = tokio::sync::mpsc::channel::<Heard>(64);
-    let voice = Arc::new(VoiceClock::new(
-        double_talk::Config::at(config.rate_hz).tail_s,
-    ));
+    let detecting = capture.is_some()
+        && !config.no_playback
+        && config.echo_cancel != EchoCancel::None
+        && config.residual_echo == ResidualEcho::Suppress;
+    // What the speaker plays, for the detector: a few seconds of 20 ms slices.
+    let (played_tx, played_rx) = match detecting {
+        true => {
+            let (tx, rx) = std::sync::mpsc::sync_channel(256);
+            (Some(tx), Some(rx))
+        }
+        false => (None, None),
+    };
+    let voice = Arc::new(VoiceClock {
+        origin: Instant::now(),
+        played: played_tx,
+    });
     let mut capture_thread = None;
     let mut raw_thread = None;
     if let Some(capture) = capture {
-        let detector = if config.echo_cancel != EchoCancel::None
-            && config.residual_echo == ResidualEcho::Suppress
-        {
+        let detector = if let Some(played_rx) = played_rx {
             // Half a second of the microphone's chunks: the capture thread takes them every
             // chunk.
             let depth = (500 / config.chunk_ms.max(1)).max(4) as usize;
             let (raw_tx, raw_rx) = std::sync::mpsc::sync_channel(depth);
-            let rate_hz = config.rate_hz;
             let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
             let (presence, echo, voice) = (presence.clone(), echo.clone(), voice.clone());
             raw_thread = Some(
@@ -424,7 +440,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         raw_microphone_loop(&loops, &stop, &raw_tx)
                     })?,
             );
-            Some(Detector::new(raw_rx, rate_hz, bus.counters()))
+            Some(Detector::new(raw_rx, played_rx, bus.counters()))
         } else {
             None
         };
@@ -563,6 +579,20 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         Err(e) => break Err(e.into()),
                     }
                 }
+                Some(Heard::PlayerOverRobot) => {
+                    // The robot yields at once: the recognizer's word that speech started comes
+                    // 0.15 s of speech later, and the canceller attenuates the player while the
+                    // robot speaks. It goes on when the recognizer says the speech ended, or
+                    // after DETECTED_PAUSE if the recognizer never heard speech.
+                    if config.pause_on_speech {
+                        tracing::debug!("the player speaks over the robot: pausing it");
+                        if let Err(e) = tell(Ctl::Pause) {
+                            break Err(e);
+                        }
+                        let until = tokio::time::Instant::now() + DETECTED_PAUSE;
+                        resume_at = Some(resume_at.map_or(until, |r| r.max(until)));
+                    }
+                }
                 None => break Err(anyhow::anyhow!("the capture thread ended")),
             },
             chunk = next(&out_sub) => {
@@ -670,26 +700,25 @@ struct Loops<'a> {
     voice: &'a VoiceClock,
 }
 
-/// When the robot's voice may be in the room, on a clock the capture threads share with the
-/// playback thread (ns since `origin`): the double-talk detector's [`RobotVoice`].
+/// The clock the capture threads and the playback thread share (ns since `origin`), and what
+/// the playback thread tells the double-talk detector: what the robot played, and when.
 #[derive(Debug)]
 struct VoiceClock {
     origin: Instant,
-    from_ns: AtomicI64,
-    until_ns: AtomicI64,
-    tail: Duration,
+    /// To the capture thread's detector; `None` without one.
+    played: Option<std::sync::mpsc::SyncSender<Played>>,
+}
+
+/// What the speaker played, for the double-talk detector.
+#[derive(Debug)]
+enum Played {
+    /// Mono samples at a rate, the first playing at a time (ns).
+    Voice(i64, u32, Vec<i16>),
+    /// What was queued from this time (ns) on was thrown away.
+    DroppedFrom(i64),
 }
 
 impl VoiceClock {
-    fn new(tail_s: f64) -> Self {
-        Self {
-            origin: Instant::now(),
-            from_ns: AtomicI64::new(0),
-            until_ns: AtomicI64::new(0),
-            tail: Duration::from_secs_f64(tail_s),
-        }
-    }
-
     fn ns(&self, t: Instant) -> i64 {
         i64::try_from(t.saturating_duration_since(self.origin).as_nanos()).unwrap_or(i64::MAX)
     }
@@ -701,26 +730,37 @@ impl VoiceClock {
         self.ns(Instant::now()) - chunk - latency_us as i64 * 1000
     }
 
-    /// What was written plays until `until`.
-    fn playing_until(&self, until: Instant) {
-        let now = self.ns(Instant::now());
-        if self.until_ns.load(Ordering::Relaxed) <= now {
-            self.from_ns.store(now, Ordering::Relaxed);
+    /// `samples` (interleaved, `channels`) play from `at` on.
+    fn played(
+        &self,
+        at: Instant,
+        (rate_hz, channels): (u32, usize),
+        samples: &[i16],
+        counters: &interfaces::bus::Counters,
+    ) {
+        let Some(tx) = &self.played else {
+            return;
+        };
+        let mono: Vec<i16> = samples
+            .chunks(channels.max(1))
+            .map(|f| (f.iter().map(|&x| i32::from(x)).sum::<i32>() / f.len() as i32) as i16)
+            .collect();
+        if tx
+            .try_send(Played::Voice(self.ns(at), rate_hz, mono))
+            .is_err()
+        {
+            counters.incr("double_talk_reference_dropped");
         }
-        self.until_ns
-            .store(self.ns(until + self.tail), Ordering::Relaxed);
     }
 
-    /// What the server held was thrown away: the voice ends with what is already in the room.
-    fn stopped(&self) {
-        let end = self.ns(Instant::now() + self.tail);
-        self.until_ns.fetch_min(end, Ordering::Relaxed);
-    }
-
-    fn voice(&self) -> RobotVoice {
-        RobotVoice {
-            from_ns: self.from_ns.load(Ordering::Relaxed),
-            until_ns: self.until_ns.load(Ordering::Relaxed),
+    /// What the server held was thrown away.
+    fn stopped(&self, counters: &interfaces::bus::Counters) {
+        if let Some(tx) = &self.played
+            && tx
+                .try_send(Played::DroppedFrom(self.ns(Instant::now())))
+                .is_err()
+        {
+            counters.incr("double_talk_reference_dropped");
         }
     }
 }
@@ -787,10 +827,12 @@ fn raw_microphone_loop(
     }
 }
 
-/// The double-talk detector of the capture thread, and the microphone's frames it is fed.
+/// The double-talk detector of the capture thread, and what it is fed: the microphone's frames
+/// and what the speaker played.
 struct Detector {
     dt: DoubleTalk,
     raw: std::sync::mpsc::Receiver<(i64, Vec<i16>)>,
+    played: std::sync::mpsc::Receiver<Played>,
     /// The time of the end of the microphone's last frame given to `dt`.
     raw_until_ns: i64,
     /// The counters `echo_suppressed_frames` and `double_talk_frames`.
@@ -801,56 +843,58 @@ struct Detector {
 impl Detector {
     fn new(
         raw: std::sync::mpsc::Receiver<(i64, Vec<i16>)>,
-        rate_hz: u32,
+        played: std::sync::mpsc::Receiver<Played>,
         counters: &interfaces::bus::Counters,
     ) -> Self {
         Self {
-            dt: DoubleTalk::new(double_talk::Config::at(rate_hz)),
+            dt: DoubleTalk::new(double_talk::Config::default()),
             raw,
+            played,
             raw_until_ns: i64::MIN,
             suppressed: counters.counter("echo_suppressed_frames"),
             player: counters.counter("double_talk_frames"),
         }
     }
 
-    /// A chunk of the canceller's output heard at `t_ns`, its residue of the robot's voice
-    /// taken out.
+    /// A chunk of the canceller's output heard at `t_ns`, the robot's residue in it taken out.
     fn process(&mut self, loops: &Loops, t_ns: i64, samples: &mut [i16]) {
         let rate = loops.config.rate_hz;
-        let cfg = self.dt.config().clone();
-        let end = t_ns + samples.len() as i64 * 1_000_000_000 / i64::from(rate);
-        // The microphone's frames up to a little after this chunk: they were heard at the same
-        // time (the canceller's output comes later), but their thread may not have run yet.
-        let deadline = Instant::now() + Duration::from_millis(20);
+        let ns = |n: usize, rate: u32| n as i64 * 1_000_000_000 / i64::from(rate.max(1));
+        while let Ok(p) = self.played.try_recv() {
+            match p {
+                Played::Voice(t, r, mono) => self.dt.reference(t, r, &mono),
+                Played::DroppedFrom(t) => self.dt.reference_dropped_from(t),
+            }
+        }
+        // The microphone's frames up to this chunk's end: they were heard at the same time (the
+        // canceller's output comes later), but their thread may not have run yet. (Not waited
+        // for when that stream is not delivering: lost, or not open yet.)
+        let end = t_ns + ns(samples.len(), rate);
+        let delivering = self.raw_until_ns > t_ns - 200_000_000;
+        let deadline = Instant::now() + Duration::from_millis(if delivering { 20 } else { 0 });
         loop {
             while let Ok((t, raw)) = self.raw.try_recv() {
-                self.raw_until_ns = t + raw.len() as i64 * 1_000_000_000 / i64::from(rate);
-                self.dt.mic(t, &raw);
+                self.raw_until_ns = t + ns(raw.len(), rate);
+                self.dt.mic(t, rate, &raw);
             }
-            if self.raw_until_ns >= end + cfg.window_after_ns.min(cfg.frame_ns)
-                || Instant::now() >= deadline
-            {
+            if self.raw_until_ns >= end || Instant::now() >= deadline {
                 break;
             }
             std::thread::sleep(Duration::from_millis(2));
         }
-        let o = self.dt.process(t_ns, samples, loops.voice.voice());
+        let o = self.dt.process(t_ns, rate, samples);
         self.suppressed
             .fetch_add(u64::from(o.suppressed_frames), Ordering::Relaxed);
         self.player
             .fetch_add(u64::from(o.player_frames), Ordering::Relaxed);
-        match self.dt.armed_changed() {
-            Some(Armed::Yes(erle)) => tracing::info!(
-                "the echo canceller takes {erle:.0} dB of the robot's voice out of the \
-                 microphone: the player can talk over the robot"
-            ),
-            Some(Armed::No(erle)) => tracing::warn!(
-                "the echo canceller takes only {erle:.0} dB of the robot's voice out (at least \
-                 {:.0} dB needed): what the microphone hears while the robot speaks is taken \
-                 for the robot's voice until it does better",
-                cfg.armed_erle_db
-            ),
-            None => {}
+        if let Some(p) = self.dt.path_changed() {
+            tracing::info!(
+                "the robot's voice reaches the microphone {} ms after it is played, {:+.0} dB \
+                 (levels correlated {:.2}): the player can talk over it when louder than that",
+                p.delay_frames * 10,
+                p.gain_db,
+                p.correlation
+            );
         }
     }
 }
@@ -886,6 +930,10 @@ fn capture_loop(
                 if let Some(d) = detector.as_mut() {
                     let t = loops.voice.heard_ns(samples.len(), config.rate_hz, latency);
                     d.process(loops, t, &mut samples);
+                    if d.dt.player_started() {
+                        counters.incr("double_talk_onsets");
+                        let _ = tx.try_send(Heard::PlayerOverRobot);
+                    }
                 }
                 match tx.try_send(Heard::Chunk(std::mem::take(&mut samples), latency)) {
                     Ok(()) => {}
@@ -909,12 +957,6 @@ fn capture_loop(
                 let Some(again) = reopen(config, stop, open) else {
                     return;
                 };
-                if again.1 != generation
-                    && let Some(d) = detector.as_mut()
-                {
-                    // A fresh canceller adapts from the start.
-                    d.dt = DoubleTalk::new(double_talk::Config::at(config.rate_hz));
-                }
                 (capture, generation) = again;
                 if tx.blocking_send(Heard::Back).is_err() {
                     return;
@@ -1083,7 +1125,7 @@ impl Player<'_> {
         if playing || held {
             s.in_sentence = false;
             self.loops.counters.incr("playback_cut");
-            self.loops.voice.stopped();
+            self.loops.voice.stopped(self.loops.counters);
             if let Err(e) = s.stream.flush() {
                 self.failed(&e);
             }
@@ -1104,7 +1146,7 @@ impl Player<'_> {
         }
         // What the server holds and has not played yet, taken back.
         let queued_us = s.stream.latency_us().unwrap_or(0);
-        self.loops.voice.stopped();
+        self.loops.voice.stopped(self.loops.counters);
         if let Err(e) = s.stream.flush() {
             self.failed(&e);
             return;
@@ -1263,9 +1305,12 @@ impl Player<'_> {
                 self.failed(&e);
                 return;
             }
-            until = until.max(Instant::now()) + duration(data.len());
+            let starts = until.max(Instant::now());
+            until = starts + duration(data.len());
             s.queued_until = Some(until);
-            self.loops.voice.playing_until(until);
+            self.loops
+                .voice
+                .played(starts, (rate, channels), &data, self.loops.counters);
             s.recent.extend(data.iter().copied());
             let excess = s.recent.len().saturating_sub(keep);
             s.recent.drain(..excess);

@@ -36,15 +36,17 @@
 //!   taken out of `audio/in` and anything else in the room stays. A canceller left by a killed
 //!   `audio_io` is replaced; one the server unloaded with a lost device is loaded again when the
 //!   device is back. What the canceller leaves of the robot's voice is taken out of `audio/in`
-//!   by a double-talk detector ([`double_talk`], `--residual-echo suppress`, experimental), which
-//!   also captures the microphone as it is to compare: counted as `echo_suppressed_frames`, and
-//!   the frames taken for the player's voice over the robot's as `double_talk_frames`; whether
-//!   the canceller removes enough of the robot for the player to talk over it is logged when it
-//!   changes.
-//! - **Yielding to the person** (`--pause-on-speech true`, behind an echo canceller): when
-//!   `speech/activity` says someone started speaking while the robot speaks, its voice stops at
-//!   once (what the server had not played is taken back) and goes on `--resume-after-s` after
-//!   the speech ended, unless the sentence was interrupted meanwhile (a command said over it).
+//!   by a double-talk detector ([`double_talk`], `--residual-echo suppress`, the default), which
+//!   also captures the microphone as it is and compares it with what the robot played: counted
+//!   as `echo_suppressed_frames`, the frames taken for the player over the robot as
+//!   `double_talk_frames`, the player's starts as `double_talk_onsets`; the echo path it
+//!   measures is logged.
+//! - **Yielding to the person** (`--pause-on-speech true`, behind an echo canceller): when the
+//!   double-talk detector hears the player start over the robot, or `speech/activity` says
+//!   someone started speaking while the robot speaks, its voice stops at once (what the server
+//!   had not played is taken back) and goes on `--resume-after-s` after the speech ended (1.5 s
+//!   after the detector's pause if the recognizer heard no speech), unless the sentence was
+//!   interrupted meanwhile (a command said over it).
 
 pub mod component;
 pub mod double_talk;

@@ -14,7 +14,9 @@
 //! - **The robot's own voice in its microphone**: sentences of the robot (espeak-ng, as the
 //!   speech generator says them) played through `audio_io` on a loudspeaker heard in the room,
 //!   with the microphone on the room, without an echo canceller (the peer: what gating must
-//!   cover) and with the sound server's WebRTC canceller (`--echo-cancel webrtc`). Measured:
+//!   cover), with the sound server's WebRTC canceller alone (`--echo-cancel webrtc
+//!   --residual-echo keep`), and with it and the double-talk detector (`--residual-echo
+//!   suppress`). Measured:
 //!   the robot's level in the room and on `audio/in` over the sentences, their difference (the
 //!   echo return loss enhancement, ERLE), and the share of 10 ms frames of `audio/in` loud
 //!   enough for the recognizer's end-pointer (-65 dBFS). The first sentence, while the
@@ -458,11 +460,11 @@ async fn main() -> anyhow::Result<()> {
         ("WebRTC canceller, first sentence (adapting)", aec_first),
         ("WebRTC canceller, the next sentences", aec),
         (
-            "canceller and double-talk suppressor, first sentence",
+            "canceller and double-talk detector, first sentence",
             sup_first,
         ),
         (
-            "canceller and double-talk suppressor, the next sentences",
+            "canceller and double-talk detector, the next sentences",
             sup,
         ),
     ] {
