@@ -4,8 +4,9 @@
 # capture-to-bus delay of the microphone's chunks, and the robot's own voice in its microphone
 # without and with the sound server's WebRTC echo canceller. The sound server is a PulseAudio of
 # this run's own (system mode as root, an anonymous unix socket in the bench's folder): a null
-# sink `room` with a virtual source `mic` on its monitor, and a null sink `speaker` (the robot's
-# loudspeaker) heard in the room through a loop-back. Extra arguments go to bench_audio
+# sink `room` with a virtual source `mic` on its monitor, and null sinks `speaker` (the robot's
+# loudspeaker) and `person` (a player talking over the robot) heard in the room through
+# loop-backs. Extra arguments go to bench_audio
 # (--clicks N, --sentences N).
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
@@ -24,6 +25,8 @@ load-module module-null-sink sink_name=room rate=48000 channels=2
 load-module module-virtual-source source_name=mic master=room.monitor
 load-module module-null-sink sink_name=speaker rate=48000 channels=2
 load-module module-loopback source=speaker.monitor sink=room latency_msec=20
+load-module module-null-sink sink_name=person rate=48000 channels=2
+load-module module-loopback source=person.monitor sink=room latency_msec=20
 PA
 mode=()
 [ "$(id -u)" -eq 0 ] && mode=(--system)

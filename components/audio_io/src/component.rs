@@ -890,10 +890,13 @@ impl Detector {
         if let Some(p) = self.dt.path_changed() {
             tracing::info!(
                 "the robot's voice reaches the microphone {} ms after it is played, {:+.0} dB \
-                 (levels correlated {:.2}): the player can talk over it when louder than that",
+                 (levels correlated {:.2}), and dies away at {:.0} dB/s: the player can talk \
+                 over it {:.0} dB louder than that",
                 p.delay_frames * 10,
                 p.gain_db,
-                p.correlation
+                p.correlation,
+                p.decay_db_per_s,
+                p.margin_db
             );
         }
     }

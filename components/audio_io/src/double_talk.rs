@@ -17,10 +17,14 @@
 //!   every [`Config::path_every_s`] of the robot's speech; a measure whose correlation is under
 //!   [`Config::min_correlation`] (the player spoke through most of it) is not taken.
 //! - **The echo a frame may hold**: the loudest of the reference's recent frames at that delay
-//!   plus the gain, a frame further back counting [`Config::decay_db_per_s`] less per second (the
-//!   room's reverberation), [`Config::jitter_frames`] either side (the streams' timing).
-//! - **The player speaks** when the microphone is at least [`Config::margin_db`] louder than
-//!   that echo (and over its own floor) in [`Config::onset_frames`] of the last
+//!   plus the gain, a frame further back counting less by the room's decay (its
+//!   reverberation), [`Config::jitter_frames`] either side (the streams' timing). The decay is
+//!   measured with the path: the fastest of [`Config::decays_db_per_s`] under which the
+//!   microphone, while the robot speaks, stands at most [`Config::fit_db`] over the echo so
+//!   predicted in 99 % of the frames; the slowest when none does.
+//! - **The player speaks** when the microphone is louder than that echo by the margin (3 dB
+//!   over that 99th percentile, within [`Config::margin_db`]) and over its own floor, in
+//!   [`Config::onset_frames`] of the last
 //!   [`Config::onset_window`] frames. What the canceller let through does not enter into it:
 //!   it is in the canceller's output, not in the microphone's excess over the echo. The
 //!   canceller's output then passes whole until [`Config::hold_s`] after the last such frame.
@@ -52,12 +56,16 @@ pub struct Config {
     pub path_every_s: f64,
     /// The correlation of the levels under which a measure is not taken.
     pub min_correlation: f64,
-    /// How fast the room's echo of a frame dies away (dB/s).
-    pub decay_db_per_s: f64,
+    /// How fast the room's echo of a frame may die away (dB/s), fastest first.
+    pub decays_db_per_s: [f64; 4],
+    /// How far over the predicted echo the microphone may stand, in 99 % of the robot's frames,
+    /// for a decay to fit (dB).
+    pub fit_db: f64,
     /// Frames either side of the delay a frame's echo may fall on.
     pub jitter_frames: i64,
-    /// How much louder than the echo it may hold a frame of the microphone is the player's (dB).
-    pub margin_db: f64,
+    /// The least and the most the microphone must stand over the echo it may hold for a frame
+    /// to be the player's (dB).
+    pub margin_db: (f64, f64),
     /// ... and over the microphone's floor (dB).
     pub over_floor_db: f64,
     /// Frames like the player's among the last `onset_window` that make the player speak.
@@ -82,9 +90,10 @@ impl Default for Config {
             path_window_s: 3.0,
             path_every_s: 1.0,
             min_correlation: 0.6,
-            decay_db_per_s: 120.0,
-            jitter_frames: 2,
-            margin_db: 6.0,
+            decays_db_per_s: [400.0, 200.0, 120.0, 60.0],
+            fit_db: 3.0,
+            jitter_frames: 4,
+            margin_db: (4.0, 10.0),
             over_floor_db: 10.0,
             onset_frames: 2,
             onset_window: 4,
@@ -139,6 +148,10 @@ pub struct EchoPath {
     pub gain_db: f64,
     /// The correlation of the levels at that delay.
     pub correlation: f64,
+    /// How fast the room's echo of a frame dies away (dB/s).
+    pub decay_db_per_s: f64,
+    /// How far over the predicted echo a frame of the player's must stand (dB).
+    pub margin_db: f64,
 }
 
 /// What the detector did to one chunk of the canceller's output.
@@ -331,7 +344,7 @@ impl DoubleTalk {
 
     /// The loudest echo of the robot frame `i` of the microphone may hold (dBFS).
     fn echo_at(&self, i: i64, path: EchoPath) -> f64 {
-        let decay = self.cfg.decay_db_per_s * self.cfg.frame_ns as f64 * 1e-9;
+        let decay = path.decay_db_per_s * self.cfg.frame_ns as f64 * 1e-9;
         let back = self.frames_of(self.cfg.tail_s) as i64;
         let mut echo = SILENCE_DB;
         for j in -self.cfg.jitter_frames..=back {
@@ -359,7 +372,7 @@ impl DoubleTalk {
                 continue;
             }
             let like_player = self.path.is_some_and(|p| {
-                l >= self.echo_at(i, p) + self.cfg.margin_db && l >= floor + self.cfg.over_floor_db
+                l >= self.echo_at(i, p) + p.margin_db && l >= floor + self.cfg.over_floor_db
             });
             tracing::trace!(
                 i,
@@ -415,12 +428,53 @@ impl DoubleTalk {
                     delay_frames: d,
                     gain_db: diff[diff.len() / 2],
                     correlation: c,
+                    decay_db_per_s: self.cfg.decays_db_per_s[3],
+                    margin_db: self.cfg.margin_db.1,
                 });
             }
         }
-        let Some(best) = best.filter(|b| b.correlation >= self.cfg.min_correlation) else {
+        let Some(mut best) = best.filter(|b| b.correlation >= self.cfg.min_correlation) else {
             return;
         };
+        // The room's decay and the margin: how far over the echo so predicted the microphone
+        // stands while the robot speaks (99th percentile over the window's voiced frames: the
+        // ends of its words, where a timing error shows, count).
+        let end = last_ref.min(last_mic - best.delay_frames);
+        let over = |path: EchoPath| {
+            let mut e: Vec<f64> = ((end - window)..=end)
+                .filter(|&r| {
+                    self.reference
+                        .at(r)
+                        .is_some_and(|x| x >= self.cfg.voice_min_dbfs)
+                })
+                .filter_map(|r| {
+                    let i = r + path.delay_frames;
+                    self.mic.at(i).map(|y| y - self.echo_at(i, path))
+                })
+                .collect();
+            e.sort_by(f64::total_cmp);
+            e.get(e.len() * 99 / 100).copied().unwrap_or(f64::INFINITY)
+        };
+        let fits: Vec<(f64, f64)> = self
+            .cfg
+            .decays_db_per_s
+            .iter()
+            .map(|&decay_db_per_s| {
+                let p95 = over(EchoPath {
+                    decay_db_per_s,
+                    ..best
+                });
+                (decay_db_per_s, p95)
+            })
+            .collect();
+        let (decay, p95) = fits
+            .iter()
+            .copied()
+            .find(|&(_, p95)| p95 <= self.cfg.fit_db)
+            .unwrap_or(fits[fits.len() - 1]);
+        best.decay_db_per_s = decay;
+        let (lo, hi) = self.cfg.margin_db;
+        best.margin_db = (p95 + 3.0).clamp(lo, hi);
         let moved = self
             .path
             .is_none_or(|p| (p.delay_frames - best.delay_frames).abs() > 1);
@@ -597,6 +651,9 @@ mod tests {
         let p = room.d.path().expect("the echo path");
         assert_eq!(p.delay_frames, 12, "{p:?}");
         assert!((p.gain_db + 3.0).abs() < 0.5, "{p:?}");
+        // A room without reverberation: the fastest decay, the least margin.
+        assert_eq!(p.decay_db_per_s, 400.0, "{p:?}");
+        assert_eq!(p.margin_db, 4.0, "{p:?}");
         assert!(room.d.path_changed().is_some());
         // The canceller lets 25 dB through (a burst as loud as a player's voice): still cut.
         let (o, levels) = room.run(100, |k| Some(voice(k)), |_| None, 0.0);

@@ -22,9 +22,16 @@
 //!   enough for the recognizer's end-pointer (-65 dBFS). The first sentence, while the
 //!   canceller adapts, is reported apart.
 //!
+//! - **The player over the robot** (double talk): with the canceller alone (the peer) and with
+//!   the detector, a player (another espeak-ng voice, on a sink of her own heard in the room)
+//!   says six short commands, each one second into the robot's longest sentence; measured: the
+//!   share of her voiced frames (within 30 dB of her peak) matched by frames of `audio/in`
+//!   over the end-pointer's floor while she speaks. What the canceller alone passes is the
+//!   most the detector can: it only ever takes out.
+//!
 //! The sound server is the caller's (`scripts/bench audio` starts one with a null sink `room`,
-//! a virtual source `mic` on its monitor, and a null sink `speaker` heard in the room through a
-//! loop-back). Prints a table, then one JSON line.
+//! a virtual source `mic` on its monitor, and null sinks `speaker` and `person` heard in the
+//! room through loop-backs). Prints tables, then one JSON line.
 
 use audio_io::component::{self, Config, Driver, EchoCancel, ResidualEcho};
 use clap::Parser;
@@ -64,6 +71,60 @@ struct Args {
     /// Sentences per echo measurement (after the first, while the canceller adapts).
     #[arg(long, default_value_t = 6)]
     sentences: usize,
+    /// The player's mouth for the double-talk measurement: a sink heard in the room.
+    #[arg(long, default_value = "person")]
+    echo_person: String,
+}
+
+/// What the player says over the robot in the double-talk measurement, one second into the
+/// robot's longest sentence.
+const PLAYER: &[&str] = &[
+    "stop",
+    "let's play",
+    "touch the ball",
+    "hello",
+    "no",
+    "look at the ball",
+];
+
+/// The player's words over the robot: their voiced 10 ms frames (within 30 dB of their peak),
+/// and the frames of `audio/in` over the end-pointer's floor while they were said.
+#[derive(Debug, Default, Clone, Copy)]
+struct PlayerOver {
+    voiced: usize,
+    passed: usize,
+}
+
+impl PlayerOver {
+    fn pct(&self) -> f64 {
+        if self.voiced == 0 {
+            0.0
+        } else {
+            100.0 * self.passed.min(self.voiced) as f64 / self.voiced as f64
+        }
+    }
+}
+
+/// Say `utterance` into the sink `--echo-person` on a stream of its own, primed with silence
+/// as `audio_io` primes the speaker: the thread playing it.
+fn say_into(args: &Args, utterance: &[i16]) -> anyhow::Result<std::thread::JoinHandle<()>> {
+    let mut play = pulse::Playback::open(
+        Some(args.server.as_str()),
+        &args.echo_person,
+        RATE_HZ,
+        1,
+        BUFFER,
+        "bench player",
+    )?;
+    let mut data = vec![0i16; (BUFFER.as_secs_f64() * f64::from(RATE_HZ)) as usize];
+    data.extend_from_slice(utterance);
+    Ok(std::thread::Builder::new()
+        .name("bench-player".into())
+        .spawn(move || {
+            if play.write(&data).is_ok() {
+                let _ = play.drain();
+            }
+        })?)
 }
 
 /// What the robot says in the echo measurement (the touch game's sentences).
@@ -177,7 +238,8 @@ async fn echo(
     args: &Args,
     (mode, residual): (EchoCancel, ResidualEcho),
     sentences: &[Vec<i16>],
-) -> anyhow::Result<(Echo, Echo)> {
+    player: &[Vec<i16>],
+) -> anyhow::Result<(Echo, Echo, PlayerOver)> {
     let (_router, bus, stop, running) = start_audio_io(
         args,
         &format!("bench-echo-{}-{mode:?}-{residual:?}", std::process::id()),
@@ -247,6 +309,64 @@ async fn echo(
         // A pause between two sentences, as in a game.
         tokio::time::sleep(Duration::from_millis(300)).await;
     }
+    // The player over the robot's longest sentence, one second into it.
+    let mut over = PlayerOver::default();
+    let long = sentences
+        .iter()
+        .max_by_key(|s| s.len())
+        .map_or(&[][..], |s| &s[..]);
+    for utterance in player {
+        let levels: Vec<f64> = utterance
+            .chunks_exact(160)
+            .map(|f| dbfs(f.iter().map(|&x| f64::from(x).powi(2)).sum(), 160))
+            .collect();
+        let peak = levels.iter().copied().fold(-120.0, f64::max);
+        over.voiced += levels.iter().filter(|&&l| l >= peak - 30.0).count();
+        let said_s = utterance.len() as f64 / f64::from(RATE_HZ);
+        let start = Instant::now();
+        let end = start + Duration::from_secs_f64(long.len() as f64 / f64::from(RATE_HZ));
+        let at = start + Duration::from_secs(1);
+        let mut speaking = None;
+        let mut window = None;
+        let mut frames: Vec<(i64, f64)> = Vec::new();
+        let mut chunks = long.chunks(1600).enumerate().peekable();
+        while Instant::now() < end + BUFFER + Duration::from_millis(500) {
+            let due = |k: usize| start + Duration::from_millis(100 * k as u64);
+            if chunks
+                .peek()
+                .is_some_and(|(k, _)| Instant::now() >= due(*k))
+                && let Some((_, c)) = chunks.next()
+            {
+                out.publish(&mut AudioChunk::mono(RATE_HZ, c)).await?;
+            }
+            if speaking.is_none() && Instant::now() >= at {
+                // Her words reach the room a buffer and the room's loop-back later.
+                let t0 = interfaces::clock::system_now_ns()
+                    + (BUFFER + Duration::from_millis(20)).as_nanos() as i64;
+                window = Some((t0 - 50_000_000, t0 + (said_s * 1e9) as i64 + 100_000_000));
+                speaking = Some(say_into(args, utterance)?);
+            }
+            while let Ok(Ok(c)) = tokio::time::timeout(Duration::from_millis(5), heard.recv()).await
+            {
+                let samples = c.samples().unwrap_or_default();
+                for (i, f) in samples.chunks_exact(160).enumerate() {
+                    let e = f.iter().map(|&x| f64::from(x).powi(2)).sum();
+                    frames.push((c.header.stamp_ns + i as i64 * 10_000_000, dbfs(e, 160)));
+                }
+            }
+            while room_rx.try_recv().is_ok() {}
+        }
+        if let Some(t) = speaking {
+            let _ = t.join();
+        }
+        if let Some((from, to)) = window {
+            over.passed += frames
+                .iter()
+                .filter(|&&(t, l)| t >= from && t < to && l >= VAD_FLOOR_DBFS)
+                .count();
+        }
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
     room_stop.store(true, std::sync::atomic::Ordering::Relaxed);
     let _ = stop.send(true);
     let _ = running.await;
@@ -272,7 +392,7 @@ async fn echo(
             },
         }
     };
-    Ok((summary(&results[..1]), summary(&results[1..])))
+    Ok((summary(&results[..1]), summary(&results[1..]), over))
 }
 
 const RATE_HZ: u32 = 16_000;
@@ -441,13 +561,33 @@ async fn main() -> anyhow::Result<()> {
         args.echo_speaker,
         args.echo_mic
     );
-    let (_, none) = echo(&args, (EchoCancel::None, ResidualEcho::Keep), &sentences).await?;
-    let (aec_first, aec) =
-        echo(&args, (EchoCancel::Webrtc, ResidualEcho::Keep), &sentences).await?;
-    let (sup_first, sup) = echo(
+    let player_voice = audio::synth::Voice {
+        voice: "en-us+f3".into(),
+        ..audio::synth::Voice::default()
+    };
+    let mut player = Vec::new();
+    for text in PLAYER {
+        player.push(audio::synth::synthesize_16k(text, &player_voice)?);
+    }
+    let (_, none, _) = echo(
+        &args,
+        (EchoCancel::None, ResidualEcho::Keep),
+        &sentences,
+        &[],
+    )
+    .await?;
+    let (aec_first, aec, aec_player) = echo(
+        &args,
+        (EchoCancel::Webrtc, ResidualEcho::Keep),
+        &sentences,
+        &player,
+    )
+    .await?;
+    let (sup_first, sup, sup_player) = echo(
         &args,
         (EchoCancel::Webrtc, ResidualEcho::Suppress),
         &sentences,
+        &player,
     )
     .await?;
     println!();
@@ -476,9 +616,30 @@ async fn main() -> anyhow::Result<()> {
             e.frames_over_floor_pct
         );
     }
+    println!();
+    println!(
+        "| the player over the robot ({} utterances, 1 s into its longest sentence) | her voiced frames on audio/in over {VAD_FLOOR_DBFS} dBFS |",
+        PLAYER.len()
+    );
+    println!("|---|---:|");
+    println!(
+        "| WebRTC canceller alone (the peer) | {:.1} % |",
+        aec_player.pct()
+    );
+    println!(
+        "| canceller and double-talk detector | {:.1} % |",
+        sup_player.pct()
+    );
     println!(
         "{}",
         serde_json::json!({
+            "player_over_robot_passed_pct": round1(sup_player.pct()),
+            "peer_canceller_player_over_robot_passed_pct": round1(aec_player.pct()),
+            "player_over_robot_passed_ratio_vs_canceller": if aec_player.pct() > 0.0 {
+                (sup_player.pct() / aec_player.pct() * 100.0).round() / 100.0
+            } else {
+                0.0
+            },
             "clicks": args.clicks,
             "echo_sentences": args.sentences,
             "echo_room_dbfs": round1(aec.room_dbfs),
