@@ -412,10 +412,16 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
         false => (None, None),
     };
-    let voice = Arc::new(VoiceClock {
-        origin: Instant::now(),
-        played: played_tx,
-    });
+    let shared = Shared {
+        config: config.clone(),
+        echo: echo.clone(),
+        presence: presence.clone(),
+        counters: bus.counters().clone(),
+        voice: Arc::new(VoiceClock {
+            origin: Instant::now(),
+            played: played_tx,
+        }),
+    };
     let mut capture_thread = None;
     let mut raw_thread = None;
     if let Some(capture) = capture {
@@ -424,42 +430,18 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             // chunk.
             let depth = (500 / config.chunk_ms.max(1)).max(4) as usize;
             let (raw_tx, raw_rx) = std::sync::mpsc::sync_channel(depth);
-            let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
-            let (presence, echo, voice) = (presence.clone(), echo.clone(), voice.clone());
-            raw_thread = Some(
-                std::thread::Builder::new()
-                    .name("microphone-raw".into())
-                    .spawn(move || {
-                        let loops = Loops {
-                            config: &config,
-                            echo: &echo,
-                            presence: &presence,
-                            counters: &counters,
-                            voice: &voice,
-                        };
-                        raw_microphone_loop(&loops, &stop, &raw_tx)
-                    })?,
-            );
+            let stop = stop.clone();
+            raw_thread = Some(shared.spawn("microphone-raw", move |loops| {
+                raw_microphone_loop(loops, &stop, &raw_tx)
+            })?);
             Some(Detector::new(raw_rx, played_rx, bus.counters()))
         } else {
             None
         };
-        let (config, stop, counters) = (config.clone(), stop.clone(), bus.counters().clone());
-        let (presence, echo, voice) = (presence.clone(), echo.clone(), voice.clone());
-        capture_thread = Some(
-            std::thread::Builder::new()
-                .name("microphone".into())
-                .spawn(move || {
-                    let loops = Loops {
-                        config: &config,
-                        echo: &echo,
-                        presence: &presence,
-                        counters: &counters,
-                        voice: &voice,
-                    };
-                    capture_loop(capture, &loops, &stop, &heard_tx, detector)
-                })?,
-        );
+        let stop = stop.clone();
+        capture_thread = Some(shared.spawn("microphone", move |loops| {
+            capture_loop(capture, loops, &stop, &heard_tx, detector)
+        })?);
     } else {
         drop(heard_tx);
     }
@@ -479,25 +461,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         // Control messages are few (one per sentence cut, per pause, per going on) and looked
         // at every slice: a full queue would be a stuck playback thread.
         let (ctx, crx) = std::sync::mpsc::sync_channel::<Ctl>(64);
-        let (config, counters, presence, echo, voice) = (
-            config.clone(),
-            bus.counters().clone(),
-            presence.clone(),
-            echo.clone(),
-            voice.clone(),
-        );
-        play_thread = Some(std::thread::Builder::new().name("speaker".into()).spawn(
-            move || {
-                let loops = Loops {
-                    config: &config,
-                    echo: &echo,
-                    presence: &presence,
-                    counters: &counters,
-                    voice: &voice,
-                };
-                playback_loop(&loops, &rx, &crx)
-            },
-        )?);
+        play_thread = Some(shared.spawn("speaker", move |loops| playback_loop(loops, &rx, &crx))?);
         play_tx = Some(tx);
         ctl_tx = Some(ctx);
         out_sub = Some(bus.subscriber(&topics::AUDIO_OUT).await?);
@@ -700,6 +664,38 @@ struct Loops<'a> {
     voice: &'a VoiceClock,
 }
 
+/// What the capture and the playback threads are started with (owned, for [`Loops`]).
+#[derive(Clone)]
+struct Shared {
+    config: Config,
+    echo: Arc<Echo>,
+    presence: Arc<Presence>,
+    counters: Arc<interfaces::bus::Counters>,
+    voice: Arc<VoiceClock>,
+}
+
+impl Shared {
+    /// Run `f` on a thread named `name`, over a [`Loops`] of its own copy of these.
+    fn spawn(
+        &self,
+        name: &str,
+        f: impl FnOnce(&Loops) + Send + 'static,
+    ) -> std::io::Result<std::thread::JoinHandle<()>> {
+        let shared = self.clone();
+        std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                f(&Loops {
+                    config: &shared.config,
+                    echo: &shared.echo,
+                    presence: &shared.presence,
+                    counters: &shared.counters,
+                    voice: &shared.voice,
+                })
+            })
+    }
+}
+
 /// The clock the capture threads and the playback thread share (ns since `origin`), and what
 /// the playback thread tells the double-talk detector: what the robot played, and when.
 #[derive(Debug)]
@@ -835,6 +831,9 @@ struct Detector {
     played: std::sync::mpsc::Receiver<Played>,
     /// The time of the end of the microphone's last frame given to `dt`.
     raw_until_ns: i64,
+    /// The canceller's output held back (first sample's time, samples) until the microphone's
+    /// frames of the next `lookback_s` are known.
+    held: std::collections::VecDeque<(i64, Vec<i16>)>,
     /// The counters `echo_suppressed_frames` and `double_talk_frames`.
     suppressed: Arc<std::sync::atomic::AtomicU64>,
     player: Arc<std::sync::atomic::AtomicU64>,
@@ -851,13 +850,15 @@ impl Detector {
             raw,
             played,
             raw_until_ns: i64::MIN,
+            held: Default::default(),
             suppressed: counters.counter("echo_suppressed_frames"),
             player: counters.counter("double_talk_frames"),
         }
     }
 
-    /// A chunk of the canceller's output heard at `t_ns`, the robot's residue in it taken out.
-    fn process(&mut self, loops: &Loops, t_ns: i64, samples: &mut [i16]) {
+    /// A chunk of the canceller's output heard at `t_ns`; the chunks held back long enough,
+    /// the robot's residue in them taken out, with when their first samples were heard.
+    fn process(&mut self, loops: &Loops, t_ns: i64, samples: Vec<i16>) -> Vec<(i64, Vec<i16>)> {
         let rate = loops.config.rate_hz;
         let ns = |n: usize, rate: u32| n as i64 * 1_000_000_000 / i64::from(rate.max(1));
         while let Ok(p) = self.played.try_recv() {
@@ -867,11 +868,12 @@ impl Detector {
             }
         }
         // The microphone's frames up to this chunk's end: they were heard at the same time (the
-        // canceller's output comes later), but their thread may not have run yet. (Not waited
-        // for when that stream is not delivering: lost, or not open yet.)
+        // canceller's output comes later), but their thread may not have run yet, on a busy
+        // machine for tens of milliseconds. (Not waited for when that stream is not
+        // delivering: lost, or not open yet.)
         let end = t_ns + ns(samples.len(), rate);
-        let delivering = self.raw_until_ns > t_ns - 200_000_000;
-        let deadline = Instant::now() + Duration::from_millis(if delivering { 20 } else { 0 });
+        let delivering = self.raw_until_ns > t_ns - 500_000_000;
+        let deadline = Instant::now() + Duration::from_millis(if delivering { 100 } else { 0 });
         loop {
             while let Ok((t, raw)) = self.raw.try_recv() {
                 self.raw_until_ns = t + ns(raw.len(), rate);
@@ -882,11 +884,24 @@ impl Detector {
             }
             std::thread::sleep(Duration::from_millis(2));
         }
-        let o = self.dt.process(t_ns, rate, samples);
-        self.suppressed
-            .fetch_add(u64::from(o.suppressed_frames), Ordering::Relaxed);
-        self.player
-            .fetch_add(u64::from(o.player_frames), Ordering::Relaxed);
+        self.held.push_back((t_ns, samples));
+        let lookback = (self.dt.config().lookback_s * 1e9) as i64;
+        let mut ready = Vec::new();
+        while self
+            .held
+            .front()
+            .is_some_and(|(t, s)| t + ns(s.len(), rate) + lookback <= end)
+        {
+            let Some((t, mut s)) = self.held.pop_front() else {
+                break;
+            };
+            let o = self.dt.process(t, rate, &mut s);
+            self.suppressed
+                .fetch_add(u64::from(o.suppressed_frames), Ordering::Relaxed);
+            self.player
+                .fetch_add(u64::from(o.player_frames), Ordering::Relaxed);
+            ready.push((t, s));
+        }
         if let Some(p) = self.dt.path_changed() {
             tracing::info!(
                 "the robot's voice reaches the microphone {} ms after it is played, {:+.0} dB \
@@ -899,6 +914,7 @@ impl Detector {
                 p.margin_db
             );
         }
+        ready
     }
 }
 
@@ -930,20 +946,35 @@ fn capture_loop(
             Ok(()) => {
                 counters.incr("capture_chunks");
                 let latency = capture.latency_us().unwrap_or(0);
-                if let Some(d) = detector.as_mut() {
-                    let t = loops.voice.heard_ns(samples.len(), config.rate_hz, latency);
-                    d.process(loops, t, &mut samples);
-                    if d.dt.player_started() {
-                        counters.incr("double_talk_onsets");
-                        let _ = tx.try_send(Heard::PlayerOverRobot);
+                let chunks = match detector.as_mut() {
+                    Some(d) => {
+                        let t = loops.voice.heard_ns(samples.len(), config.rate_hz, latency);
+                        let ready = d.process(loops, t, std::mem::take(&mut samples));
+                        if d.dt.player_started() {
+                            counters.incr("double_talk_onsets");
+                            let _ = tx.try_send(Heard::PlayerOverRobot);
+                        }
+                        // Held back: how long their last samples waited by now.
+                        let now = loops.voice.ns(Instant::now());
+                        ready
+                            .into_iter()
+                            .map(|(t, s)| {
+                                let end = t + s.len() as i64 * 1_000_000_000
+                                    / i64::from(config.rate_hz.max(1));
+                                (s, u64::try_from((now - end) / 1000).unwrap_or(0))
+                            })
+                            .collect()
                     }
-                }
-                match tx.try_send(Heard::Chunk(std::mem::take(&mut samples), latency)) {
-                    Ok(()) => {}
-                    Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
-                        counters.incr("capture_overruns");
+                    None => vec![(std::mem::take(&mut samples), latency)],
+                };
+                for (chunk, waited_us) in chunks {
+                    match tx.try_send(Heard::Chunk(chunk, waited_us)) {
+                        Ok(()) => {}
+                        Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
+                            counters.incr("capture_overruns");
+                        }
+                        Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) => return,
                     }
-                    Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) => return,
                 }
             }
             Err(e) => {

@@ -73,6 +73,9 @@ pub struct Config {
     pub onset_window: usize,
     /// How long after the player's last frame the canceller's output passes whole (s).
     pub hold_s: f64,
+    /// ... and how long before the first (s): her first sounds, heard before they were known
+    /// to be hers. The caller holds the canceller's output back this long.
+    pub lookback_s: f64,
     /// How long after the reference's last voiced frame its echo may still be in the room (s),
     /// beyond the echo path's delay.
     pub tail_s: f64,
@@ -98,6 +101,7 @@ impl Default for Config {
             onset_frames: 2,
             onset_window: 4,
             hold_s: 0.3,
+            lookback_s: 0.08,
             tail_s: 0.3,
             floor_rise_db_per_s: 3.0,
         }
@@ -232,7 +236,8 @@ pub struct DoubleTalk {
     voiced_since_measure: usize,
     /// Whether each of the last microphone frames heard with the robot was like the player's.
     recent: VecDeque<bool>,
-    /// The canceller's output passes whole until then (ns).
+    /// The canceller's output passes whole from and until then (ns).
+    hold_from_ns: i64,
     hold_until_ns: i64,
     /// The gain at the end of the last output frame.
     gain: f64,
@@ -254,6 +259,7 @@ impl DoubleTalk {
             path: None,
             voiced_since_measure: 0,
             recent: VecDeque::new(),
+            hold_from_ns: i64::MIN,
             hold_until_ns: i64::MIN,
             gain: 1.0,
             changed: None,
@@ -282,6 +288,10 @@ impl DoubleTalk {
 
     fn frames_of(&self, s: f64) -> usize {
         (s * 1e9 / self.cfg.frame_ns as f64).round() as usize
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.cfg
     }
 
     /// The echo path, once measured.
@@ -389,7 +399,10 @@ impl DoubleTalk {
             let run = self.recent.iter().filter(|&&p| p).count();
             let holding = t < self.hold_until_ns;
             if like_player && (holding || run >= self.cfg.onset_frames) {
-                self.started |= !holding;
+                if !holding {
+                    self.started = true;
+                    self.hold_from_ns = t - (self.cfg.lookback_s * 1e9) as i64;
+                }
                 self.hold_until_ns = t + (self.cfg.hold_s * 1e9) as i64;
             }
         }
@@ -499,7 +512,7 @@ impl DoubleTalk {
                 continue;
             }
             outcome.robot_frames += 1;
-            if t < self.hold_until_ns {
+            if t >= self.hold_from_ns && t < self.hold_until_ns {
                 outcome.player_frames += 1;
                 self.ramp(f, 1.0);
             } else {

@@ -561,18 +561,25 @@ mod tests {
     /// set from it would sit 9 dB under the noise, which would be heard as an utterance.
     #[test]
     fn noise_starting_inside_a_frame_or_fading_in_after_digital_silence_is_the_floor() {
+        /// The stream in 20 ms chunks: the utterances cut from it (times) and the floor.
+        fn heard(stream: &[i16]) -> (Vec<(f64, f64)>, f64) {
+            let mut vad = Vad::new(VadConfig::default());
+            let mut segs = vec![];
+            for c in stream.chunks(320) {
+                segs.extend(vad.push(c));
+            }
+            segs.extend(vad.flush());
+            let times = segs.iter().map(|s| (s.start_s(), s.end_s())).collect();
+            (times, vad.floor_dbfs().unwrap())
+        }
         let mut stream = vec![0i16; 16000 + 140];
         let p = 10f64.powf(-6.2); // -62 dBFS
         stream.extend(with_noise(vec![0i16; 32000], p, 5));
-        let mut vad = Vad::new(VadConfig::default());
-        let mut segs = vec![];
-        for c in stream.chunks(320) {
-            segs.extend(vad.push(c));
-        }
-        segs.extend(vad.flush());
-        let times: Vec<(f64, f64)> = segs.iter().map(|s| (s.start_s(), s.end_s())).collect();
-        assert!(segs.is_empty(), "utterances in the room's noise: {times:?}");
-        let floor = vad.floor_dbfs().unwrap();
+        let (times, floor) = heard(&stream);
+        assert!(
+            times.is_empty(),
+            "utterances in the room's noise: {times:?}"
+        );
         assert!((floor + 62.0).abs() < 3.0, "{floor}");
 
         // The same noise fading in over 30 ms (no frame of it partly silent): the floor is the
@@ -583,18 +590,11 @@ mod tests {
             *x = (f64::from(*x) * (k + 1) as f64 / 480.0).round() as i16;
         }
         stream.extend(room);
-        let mut vad = Vad::new(VadConfig::default());
-        let mut segs = vec![];
-        for c in stream.chunks(320) {
-            segs.extend(vad.push(c));
-        }
-        segs.extend(vad.flush());
-        let times: Vec<(f64, f64)> = segs.iter().map(|s| (s.start_s(), s.end_s())).collect();
+        let (times, floor) = heard(&stream);
         assert!(
-            segs.is_empty(),
+            times.is_empty(),
             "utterances in the fading-in noise: {times:?}"
         );
-        let floor = vad.floor_dbfs().unwrap();
         assert!((floor + 62.0).abs() < 3.0, "{floor}");
     }
 

@@ -105,6 +105,36 @@ impl PlayerOver {
     }
 }
 
+/// A sentence sent on `audio/out` in 100 ms chunks from `start`, paced in real time as the
+/// speech generator does.
+struct Paced<'a> {
+    start: Instant,
+    chunks: std::iter::Peekable<std::iter::Enumerate<std::slice::Chunks<'a, i16>>>,
+}
+
+impl<'a> Paced<'a> {
+    fn new(start: Instant, sentence: &'a [i16]) -> Self {
+        Self {
+            start,
+            chunks: sentence.chunks(1600).enumerate().peekable(),
+        }
+    }
+
+    /// Send the next chunk if it is due.
+    async fn send_due(&mut self, out: &interfaces::Publisher<AudioChunk>) -> anyhow::Result<()> {
+        let due = |k: usize| self.start + Duration::from_millis(100 * k as u64);
+        if self
+            .chunks
+            .peek()
+            .is_some_and(|(k, _)| Instant::now() >= due(*k))
+            && let Some((_, c)) = self.chunks.next()
+        {
+            out.publish(&mut AudioChunk::mono(RATE_HZ, c)).await?;
+        }
+        Ok(())
+    }
+}
+
 /// Say `utterance` into the sink `--echo-person` on a stream of its own, primed with silence
 /// as `audio_io` primes the speaker: the thread playing it.
 fn say_into(args: &Args, utterance: &[i16]) -> anyhow::Result<std::thread::JoinHandle<()>> {
@@ -287,16 +317,9 @@ async fn echo(
         let start = Instant::now();
         let end = start + Duration::from_secs_f64(sentence.len() as f64 / f64::from(RATE_HZ));
         let listen_until = end + BUFFER + Duration::from_millis(500);
-        let mut chunks = sentence.chunks(1600).enumerate().peekable();
+        let mut paced = Paced::new(start, sentence);
         while Instant::now() < listen_until {
-            let due = |k: usize| start + Duration::from_millis(100 * k as u64);
-            if chunks
-                .peek()
-                .is_some_and(|(k, _)| Instant::now() >= due(*k))
-                && let Some((_, c)) = chunks.next()
-            {
-                out.publish(&mut AudioChunk::mono(RATE_HZ, c)).await?;
-            }
+            paced.send_due(&out).await?;
             while let Ok(Ok(c)) = tokio::time::timeout(Duration::from_millis(5), heard.recv()).await
             {
                 mic.add(&c.samples().unwrap_or_default());
@@ -329,16 +352,9 @@ async fn echo(
         let mut speaking = None;
         let mut window = None;
         let mut frames: Vec<(i64, f64)> = Vec::new();
-        let mut chunks = long.chunks(1600).enumerate().peekable();
+        let mut paced = Paced::new(start, long);
         while Instant::now() < end + BUFFER + Duration::from_millis(500) {
-            let due = |k: usize| start + Duration::from_millis(100 * k as u64);
-            if chunks
-                .peek()
-                .is_some_and(|(k, _)| Instant::now() >= due(*k))
-                && let Some((_, c)) = chunks.next()
-            {
-                out.publish(&mut AudioChunk::mono(RATE_HZ, c)).await?;
-            }
+            paced.send_due(&out).await?;
             if speaking.is_none() && Instant::now() >= at {
                 // Her words reach the room a buffer and the room's loop-back later.
                 let t0 = interfaces::clock::system_now_ns()
