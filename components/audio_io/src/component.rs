@@ -831,8 +831,8 @@ struct Detector {
     played: std::sync::mpsc::Receiver<Played>,
     /// The time of the end of the microphone's last frame given to `dt`.
     raw_until_ns: i64,
-    /// The canceller's output held back (first sample's time, samples) until the microphone's
-    /// frames of the next `lookback_s` are known.
+    /// The canceller's output held back (first sample's time, samples), while the robot's voice
+    /// may be in the room, until the microphone's frames of the next `lookback_s` are known.
     held: std::collections::VecDeque<(i64, Vec<i16>)>,
     /// The counters `echo_suppressed_frames` and `double_talk_frames`.
     suppressed: Arc<std::sync::atomic::AtomicU64>,
@@ -884,14 +884,15 @@ impl Detector {
             }
             std::thread::sleep(Duration::from_millis(2));
         }
+        self.dt.canceller(t_ns, rate, &samples);
         self.held.push_back((t_ns, samples));
         let lookback = (self.dt.config().lookback_s * 1e9) as i64;
         let mut ready = Vec::new();
-        while self
-            .held
-            .front()
-            .is_some_and(|(t, s)| t + ns(s.len(), rate) + lookback <= end)
-        {
+        // Held back only while the robot's voice may be in the room, where the player's first
+        // sounds may come before they are known to be hers.
+        while self.held.front().is_some_and(|(t, s)| {
+            t + ns(s.len(), rate) + lookback <= end || !self.dt.robot_may_be_heard(*t)
+        }) {
             let Some((t, mut s)) = self.held.pop_front() else {
                 break;
             };
@@ -1339,12 +1340,20 @@ impl Player<'_> {
                 self.failed(&e);
                 return;
             }
-            let starts = until.max(Instant::now());
+            let now = Instant::now();
+            let starts = until.max(now);
             until = starts + duration(data.len());
             s.queued_until = Some(until);
+            // When the slice plays, as the server says (it knows of late writes and of the
+            // device's own delay; a busy machine's count of what was written does not).
+            let plays = s
+                .stream
+                .latency_us()
+                .and_then(|l| (now + Duration::from_micros(l)).checked_sub(duration(data.len())))
+                .unwrap_or(starts);
             self.loops
                 .voice
-                .played(starts, (rate, channels), &data, self.loops.counters);
+                .played(plays, (rate, channels), &data, self.loops.counters);
             s.recent.extend(data.iter().copied());
             let excess = s.recent.len().saturating_sub(keep);
             s.recent.drain(..excess);

@@ -26,8 +26,16 @@
 //!   over that 99th percentile, within [`Config::margin_db`]) and over its own floor, in
 //!   [`Config::onset_frames`] of the last
 //!   [`Config::onset_window`] frames. What the canceller let through does not enter into it:
-//!   it is in the canceller's output, not in the microphone's excess over the echo. The
-//!   canceller's output then passes whole until [`Config::hold_s`] after the last such frame.
+//!   it is in the canceller's output, not in the microphone's excess over the echo.
+//! - **Or the canceller's output shows her** ([`DoubleTalk::canceller`]): where the robot is
+//!   heard, it stands [`Config::residual_margin_db`] over the 99th percentile of what the
+//!   canceller left of the robot alone lately (against the echo the frame may hold) and within
+//!   [`Config::player_share_db`] of the microphone, in as many frames. That is the player as loud at the microphone as the robot's echo, whom the first
+//!   test misses when a busy machine's timing makes the echo a frame may hold too large.
+//! - **Her frames are the microphone as it is** ([`Config::pass_microphone`]), from
+//!   [`Config::lookback_s`] before the first until [`Config::hold_s`] after the last (and on
+//!   until she pauses, once the robot's voice has died away): while the robot speaks, the
+//!   canceller's suppressor takes tens of dB out of her too, her first sounds above all.
 //! - **Otherwise, while the robot's voice may be in the room**, the canceller's output is cut to
 //!   its own noise floor (not to digital silence, which would drag the recognizer's floor down,
 //!   and the room's noise would then start an utterance when the robot stops). Before the echo
@@ -81,6 +89,18 @@ pub struct Config {
     pub tail_s: f64,
     /// How fast the floors rise (dB/s; they fall at once).
     pub floor_rise_db_per_s: f64,
+    /// Whether the player's frames over the robot are the microphone as it is rather than the
+    /// canceller's output (see [`DoubleTalk::process`]).
+    pub pass_microphone: bool,
+    /// How much of the robot the canceller leaves is judged over this much of its speech (s)...
+    pub residual_window_s: f64,
+    /// ... and the canceller's output is the player's when it stands this far over the 99th
+    /// percentile of that (dB over the echo the frame may hold)...
+    pub residual_margin_db: f64,
+    /// ... and at most this far under the microphone (dB): once its suppressor lets her
+    /// through, the canceller passes the player nearly whole (4-7 dB under a microphone that
+    /// also holds the robot's echo), while its leaks stand 10-15 dB under the microphone.
+    pub player_share_db: f64,
 }
 
 impl Default for Config {
@@ -104,6 +124,10 @@ impl Default for Config {
             lookback_s: 0.08,
             tail_s: 0.3,
             floor_rise_db_per_s: 3.0,
+            pass_microphone: true,
+            residual_window_s: 3.0,
+            residual_margin_db: 6.0,
+            player_share_db: 8.0,
         }
     }
 }
@@ -140,6 +164,55 @@ impl Floor {
         };
         self.db = Some(db);
         db
+    }
+}
+
+/// The microphone's last samples, contiguous, the first heard at `start_ns`.
+#[derive(Debug, Default)]
+struct Tail {
+    start_ns: i64,
+    rate_hz: u32,
+    samples: VecDeque<i16>,
+}
+
+impl Tail {
+    /// Streams' times jitter by their latency's estimate: a chunk that starts within this of
+    /// where the last ended follows it (ns).
+    const SLACK_NS: i64 = 20_000_000;
+
+    fn ns(&self, n: usize) -> i64 {
+        n as i64 * 1_000_000_000 / i64::from(self.rate_hz.max(1))
+    }
+
+    /// Samples heard from `t_ns` on, keeping the last `keep_ns`.
+    fn push(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16], keep_ns: i64) {
+        let end = self.start_ns + self.ns(self.samples.len());
+        if self.rate_hz != rate_hz || self.samples.is_empty() || (t_ns - end).abs() > Self::SLACK_NS
+        {
+            self.samples.clear();
+            self.start_ns = t_ns;
+            self.rate_hz = rate_hz;
+        }
+        self.samples.extend(samples);
+        let keep = (keep_ns as i128 * i128::from(rate_hz) / 1_000_000_000) as usize;
+        let excess = self.samples.len().saturating_sub(keep);
+        self.samples.drain(..excess);
+        self.start_ns += self.ns(excess);
+    }
+
+    /// The samples heard from `t_ns` on into `out`, if all of them are held.
+    fn copy(&self, t_ns: i64, rate_hz: u32, out: &mut [i16]) -> bool {
+        if rate_hz != self.rate_hz || t_ns < self.start_ns {
+            return false;
+        }
+        let from = ((t_ns - self.start_ns) as i128 * i128::from(rate_hz) / 1_000_000_000) as usize;
+        if from + out.len() > self.samples.len() {
+            return false;
+        }
+        for (o, s) in out.iter_mut().zip(self.samples.range(from..)) {
+            *o = *s;
+        }
+        true
     }
 }
 
@@ -227,6 +300,8 @@ pub struct DoubleTalk {
     /// The robot's voice as played, and the microphone as it is.
     reference: Levels,
     mic: Levels,
+    /// The microphone's samples, for the player's frames.
+    tail: Tail,
     mic_floor: Floor,
     out_floor: Floor,
     /// The last reference frame with voice.
@@ -236,6 +311,11 @@ pub struct DoubleTalk {
     voiced_since_measure: usize,
     /// Whether each of the last microphone frames heard with the robot was like the player's.
     recent: VecDeque<bool>,
+    /// ... and each of the last frames of the canceller's output.
+    recent_out: VecDeque<bool>,
+    /// How far over the echo the frame may hold the canceller's output stood in the robot's
+    /// recent frames without the player (dB), the newest last.
+    residual: VecDeque<f64>,
     /// The canceller's output passes whole from and until then (ns).
     hold_from_ns: i64,
     hold_until_ns: i64,
@@ -253,12 +333,15 @@ impl DoubleTalk {
             cfg,
             reference: Levels::default(),
             mic: Levels::default(),
+            tail: Tail::default(),
             mic_floor: Floor::default(),
             out_floor: Floor::default(),
             last_voiced: None,
             path: None,
             voiced_since_measure: 0,
             recent: VecDeque::new(),
+            recent_out: VecDeque::new(),
+            residual: VecDeque::new(),
             hold_from_ns: i64::MIN,
             hold_until_ns: i64::MIN,
             gain: 1.0,
@@ -334,6 +417,12 @@ impl DoubleTalk {
         }
     }
 
+    /// Whether the robot's voice may be in the room at `t_ns` on the microphone's clock: the
+    /// canceller's output of that time is held back [`Config::lookback_s`] only then.
+    pub fn robot_may_be_heard(&self, t_ns: i64) -> bool {
+        self.robot_at(self.index(t_ns))
+    }
+
     /// Whether the robot's voice may be in the room at frame `i` of the microphone.
     fn robot_at(&self, i: i64) -> bool {
         let Some(v) = self.last_voiced else {
@@ -371,6 +460,11 @@ impl DoubleTalk {
         let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let keep = self.keep();
         let rise = self.rise();
+        if self.cfg.pass_microphone {
+            let keep_ns = (self.cfg.lookback_s * 1e9) as i64 + 1_000_000_000;
+            self.tail.push(t_ns, rate_hz, samples, keep_ns);
+        }
+        let hold_ns = (self.cfg.hold_s * 1e9) as i64;
         for (k, f) in samples.chunks(per_frame).enumerate() {
             let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
             let i = self.index(t);
@@ -379,6 +473,11 @@ impl DoubleTalk {
             self.mic.push(i, l, keep);
             if !self.robot_at(i) {
                 self.recent.clear();
+                // The player goes on after the robot's voice died away: her words stay on one
+                // signal until she pauses.
+                if t < self.hold_until_ns && l >= floor + self.cfg.over_floor_db {
+                    self.hold_until_ns = t + hold_ns;
+                }
                 continue;
             }
             let like_player = self.path.is_some_and(|p| {
@@ -392,19 +491,99 @@ impl DoubleTalk {
                 holding = t < self.hold_until_ns,
                 "microphone frame"
             );
-            self.recent.push_back(like_player);
-            while self.recent.len() > self.cfg.onset_window.max(1) {
-                self.recent.pop_front();
-            }
-            let run = self.recent.iter().filter(|&&p| p).count();
+            self.player_frame(t, like_player, false);
+        }
+    }
+
+    /// The canceller's output as it arrives (mono, `rate_hz`, its first sample heard at
+    /// `t_ns`), before [`Self::process`] is given it. The player shows there too: where the
+    /// robot's echo is as loud as she is, the microphone stands no higher than the echo it may
+    /// hold, but the canceller's output stands far over what the canceller leaves of the robot
+    /// alone (by [`Config::residual_margin_db`] over the 99th percentile of that, its leaks
+    /// included, over the last [`Config::residual_window_s`] of the robot's speech).
+    pub fn canceller(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16]) {
+        let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
+        let keep = self.frames_of(self.cfg.residual_window_s);
+        // The room's noise as the microphone hears it: the canceller's own output sinks to
+        // digital silence where it suppresses, no measure of the room.
+        let Some(floor) = self.mic_floor.db else {
+            return;
+        };
+        for (k, f) in samples.chunks(per_frame).enumerate() {
+            let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+            let i = self.index(t);
+            let l = level_db(f);
+            // The microphone's frame of the same time, heard (not a stream's silent start).
+            let mic = self.mic.at(i).filter(|&m| m > SILENCE_DB);
+            let (Some(path), Some(mic)) = (self.path.filter(|_| self.robot_at(i)), mic) else {
+                self.recent_out.clear();
+                continue;
+            };
+            let echo = self.echo_at(i, path);
+            // Only where the robot is heard: elsewhere the microphone tells her apart.
+            let audible = echo >= floor + self.cfg.over_floor_db;
+            let over = l - echo;
+            let known = self.residual.len() >= self.frames_of(1.0);
+            let threshold = known.then(|| {
+                let mut r: Vec<f64> = self.residual.iter().copied().collect();
+                r.sort_by(f64::total_cmp);
+                r[r.len() * 99 / 100] + self.cfg.residual_margin_db
+            });
+            let like_player = audible
+                && threshold.is_some_and(|th| over >= th)
+                && l >= mic - self.cfg.player_share_db
+                && l >= floor + self.cfg.over_floor_db;
             let holding = t < self.hold_until_ns;
-            if like_player && (holding || run >= self.cfg.onset_frames) {
-                if !holding {
-                    self.started = true;
-                    self.hold_from_ns = t - (self.cfg.lookback_s * 1e9) as i64;
+            tracing::trace!(
+                i,
+                out = format!("{l:.1}"),
+                mic = format!("{mic:.1}"),
+                over = format!("{over:.1}"),
+                threshold = format!("{:.1}", threshold.unwrap_or(f64::NAN)),
+                like_player,
+                "canceller's output"
+            );
+            // What it leaves of the robot alone, where the robot is heard.
+            if audible && !like_player && !holding {
+                self.residual.push_back(over);
+                while self.residual.len() > keep {
+                    self.residual.pop_front();
                 }
-                self.hold_until_ns = t + (self.cfg.hold_s * 1e9) as i64;
             }
+            self.player_frame(t, like_player, true);
+        }
+    }
+
+    /// A frame at `t` of the microphone (`canceller`: of the canceller's output) like the
+    /// player's or not: she starts speaking when [`Config::onset_frames`] of the last
+    /// [`Config::onset_window`] of the one or the other are, and the canceller's output then
+    /// passes whole (from [`Config::lookback_s`] before) until [`Config::hold_s`] after the last.
+    fn player_frame(&mut self, t: i64, like_player: bool, canceller: bool) {
+        let window = self.cfg.onset_window.max(1);
+        let recent = match canceller {
+            true => &mut self.recent_out,
+            false => &mut self.recent,
+        };
+        recent.push_back(like_player);
+        while recent.len() > window {
+            recent.pop_front();
+        }
+        let run = recent.iter().filter(|&&p| p).count();
+        let holding = t < self.hold_until_ns;
+        if like_player && (holding || run >= self.cfg.onset_frames) {
+            if !holding {
+                tracing::debug!(
+                    frame = self.index(t),
+                    "the player starts over the robot: heard {}",
+                    match canceller {
+                        true => "in the canceller's output",
+                        false => "on the microphone, over the robot's echo",
+                    }
+                );
+                self.started = true;
+                self.hold_from_ns = t - (self.cfg.lookback_s * 1e9) as i64;
+            }
+            self.hold_until_ns = self.hold_until_ns.max(t + (self.cfg.hold_s * 1e9) as i64);
         }
     }
 
@@ -498,7 +677,8 @@ impl DoubleTalk {
     }
 
     /// A chunk of the canceller's output (mono, `rate_hz`), its first sample heard at `t_ns`:
-    /// the robot's residue in it cut in place.
+    /// the robot's residue in it cut in place, and the player's frames replaced by the
+    /// microphone's (with [`Config::pass_microphone`], where the microphone's are held).
     pub fn process(&mut self, t_ns: i64, rate_hz: u32, samples: &mut [i16]) -> Outcome {
         let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let rise = self.rise();
@@ -507,12 +687,16 @@ impl DoubleTalk {
             let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
             let out = level_db(f);
             let floor = self.out_floor.update(out, rise);
+            let passed = t >= self.hold_from_ns && t < self.hold_until_ns;
+            if passed && self.cfg.pass_microphone {
+                self.tail.copy(t, rate_hz, f);
+            }
             if !self.robot_at(self.index(t)) {
                 self.ramp(f, 1.0);
                 continue;
             }
             outcome.robot_frames += 1;
-            if t >= self.hold_from_ns && t < self.hold_until_ns {
+            if passed {
                 outcome.player_frames += 1;
                 self.ramp(f, 1.0);
             } else {
@@ -591,6 +775,11 @@ mod tests {
         delay: usize,
         gain: f64,
         played: Vec<f64>,
+        /// How much the canceller takes out of the player too (its suppressor, while the robot
+        /// speaks; dB).
+        player_loss_db: f64,
+        /// The microphone's levels, frame by frame.
+        heard: Vec<f64>,
     }
 
     impl Room {
@@ -600,6 +789,8 @@ mod tests {
                 delay,
                 gain,
                 played: Vec::new(),
+                player_loss_db: 0.0,
+                heard: Vec::new(),
             }
         }
 
@@ -631,9 +822,11 @@ mod tests {
                         .log10()
                 };
                 let mic = sum_db(echo, p, -70.0);
-                let out = sum_db(echo - erle, p, -75.0);
+                let out = sum_db(echo - erle, p - self.player_loss_db, -75.0);
+                self.heard.push(mic);
                 self.d.mic(t, RATE, &frame_at(mic, k));
                 let mut o = frame_at(out, k);
+                self.d.canceller(t, RATE, &o);
                 let oc = self.d.process(t, RATE, &mut o);
                 sum.robot_frames += oc.robot_frames;
                 sum.player_frames += oc.player_frames;
@@ -689,6 +882,78 @@ mod tests {
         let (o, _) = room.run(60, |k| Some(voice(k)), |_| None, 20.0);
         assert!((15..=30).contains(&o.player_frames), "{o:?}");
         assert!(o.suppressed_frames >= 28, "{o:?}");
+    }
+
+    /// The player as loud at the microphone as the robot's echo: the microphone alone does not
+    /// tell her apart, but the canceller's output stands far over what it leaves of the robot.
+    #[test]
+    fn the_player_as_loud_as_the_robot_shows_in_the_cancellers_output() {
+        let mut room = Room::new(12, -3.0);
+        // The microphone alone never tells her apart here.
+        room.d.cfg.margin_db = (40.0, 40.0);
+        room.run(400, |k| Some(voice(k)), |_| None, 25.0);
+        assert!(room.d.path().is_some());
+        // A leak: the canceller lets 13 dB more of the robot through, far over what it left
+        // lately, but 12 dB under the microphone: the robot still.
+        let (o, _) = room.run(30, |k| Some(voice(k)), |_| None, 12.0);
+        assert!(!room.d.player_started(), "{o:?}");
+        assert_eq!(o.player_frames, 0, "{o:?}");
+        let (o, levels) = room.run(
+            50,
+            |k| Some(voice(k)),
+            |k| Some(voice(k + 12 - 4) - 3.0),
+            25.0,
+        );
+        assert!(room.d.player_started());
+        assert!(o.player_frames >= 40, "{o:?}");
+        assert!(levels[10..].iter().all(|&l| l > -50.0), "{levels:?}");
+    }
+
+    /// While the robot speaks, the canceller takes 30 dB out of the player too: the frames
+    /// passed as hers are the microphone's, not the canceller's.
+    #[test]
+    fn the_players_frames_are_the_microphone_as_it_is() {
+        let mut room = Room::new(12, -3.0);
+        room.player_loss_db = 30.0;
+        room.run(200, |k| Some(voice(k)), |_| None, 20.0);
+        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 20.0);
+        assert!(o.player_frames >= 40, "{o:?}");
+        let heard = &room.heard[room.heard.len() - 50..];
+        for (k, (&out, &mic)) in levels.iter().zip(heard).enumerate().skip(10) {
+            assert!(
+                (out - mic).abs() < 0.5,
+                "frame {k}: {out:.1} dBFS out, {mic:.1} heard"
+            );
+        }
+    }
+
+    #[test]
+    fn the_microphones_tail_is_contiguous_and_starts_again_after_a_jump() {
+        let mut tail = Tail::default();
+        let ms = 1_000_000;
+        let chunk: Vec<i16> = (0..320).collect();
+        tail.push(0, RATE, &chunk, 1_000 * ms);
+        // 1 ms late by the stream's latency estimate: still the next samples.
+        let next: Vec<i16> = (320..640).collect();
+        tail.push(21 * ms, RATE, &next, 1_000 * ms);
+        let mut out = [0i16; 160];
+        assert!(tail.copy(30 * ms, RATE, &mut out));
+        assert_eq!(out[0], 480);
+        // Not held: before the first, past the last, another rate.
+        assert!(!tail.copy(-ms, RATE, &mut out));
+        assert!(!tail.copy(35 * ms, RATE, &mut out));
+        assert!(!tail.copy(0, 48_000, &mut out));
+        // A jump of 100 ms: what was held is no longer next to it.
+        tail.push(140 * ms, RATE, &chunk, 1_000 * ms);
+        assert!(!tail.copy(30 * ms, RATE, &mut out));
+        assert!(tail.copy(140 * ms, RATE, &mut out));
+        assert_eq!(out[0], 0);
+        // Only the last `keep_ns` are kept.
+        for c in 0..10 {
+            tail.push((160 + 20 * c) * ms, RATE, &chunk, 50 * ms);
+        }
+        assert!(!tail.copy(200 * ms, RATE, &mut out));
+        assert!(tail.copy(320 * ms, RATE, &mut out));
     }
 
     #[test]

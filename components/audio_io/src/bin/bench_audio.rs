@@ -535,6 +535,8 @@ async fn through_robocog(args: &Args) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    // Quiet unless asked (RUST_LOG=audio_io::double_talk=debug tells when the player was heard).
+    interfaces::node::init_logging_with("warn");
     let devices = pulse::devices(Some(&args.server))?;
     eprintln!(
         "sound server {}: {} clicks, one every {} ms",
