@@ -28,9 +28,10 @@
 //!   [`Config::onset_window`] frames. What the canceller let through does not enter into it:
 //!   it is in the canceller's output, not in the microphone's excess over the echo.
 //! - **Or the canceller's output shows her** ([`DoubleTalk::canceller`]): where the robot is
-//!   heard, it stands [`Config::residual_margin_db`] over the 99th percentile of what the
-//!   canceller left of the robot alone lately (against the echo the frame may hold) and within
-//!   [`Config::player_share_db`] of the microphone, in as many frames. That is the player as loud at the microphone as the robot's echo, whom the first
+//!   heard, and the canceller takes [`Config::min_erle_db`] or more out of the robot lately
+//!   (the median over [`Config::residual_window_s`]), its output stands within
+//!   [`Config::player_share_db`] of the microphone, in [`Config::canceller_onset_frames`] of
+//!   the last [`Config::onset_window`]. That is the player as loud at the microphone as the robot's echo, whom the first
 //!   test misses when a busy machine's timing makes the echo a frame may hold too large.
 //! - **Her frames are the microphone as it is** ([`Config::pass_microphone`]), from
 //!   [`Config::lookback_s`] before the first until [`Config::hold_s`] after the last (and on
@@ -92,15 +93,19 @@ pub struct Config {
     /// Whether the player's frames over the robot are the microphone as it is rather than the
     /// canceller's output (see [`DoubleTalk::process`]).
     pub pass_microphone: bool,
-    /// How much of the robot the canceller leaves is judged over this much of its speech (s)...
+    /// How much the canceller takes out of the robot is judged over this much of its speech
+    /// (s)...
     pub residual_window_s: f64,
-    /// ... and the canceller's output is the player's when it stands this far over the 99th
-    /// percentile of that (dB over the echo the frame may hold)...
-    pub residual_margin_db: f64,
-    /// ... and at most this far under the microphone (dB): once its suppressor lets her
-    /// through, the canceller passes the player nearly whole (4-7 dB under a microphone that
-    /// also holds the robot's echo), while its leaks stand 10-15 dB under the microphone.
+    /// ... and its output tells the player only when that is at least this (dB, the median
+    /// over that window: an adapted canceller)...
+    pub min_erle_db: f64,
+    /// ... when it stands at most this far under the microphone (dB): once its suppressor lets
+    /// her through, the canceller passes the player nearly whole (4-8 dB under a microphone
+    /// that also holds the robot's echo), while its leaks stand 10-15 dB under the microphone.
     pub player_share_db: f64,
+    /// Frames of the canceller's output like the player's among the last `onset_window` that
+    /// make the player speak (its leaks come in bursts of a frame or two).
+    pub canceller_onset_frames: usize,
 }
 
 impl Default for Config {
@@ -126,8 +131,9 @@ impl Default for Config {
             floor_rise_db_per_s: 3.0,
             pass_microphone: true,
             residual_window_s: 3.0,
-            residual_margin_db: 6.0,
+            min_erle_db: 20.0,
             player_share_db: 8.0,
+            canceller_onset_frames: 3,
         }
     }
 }
@@ -313,8 +319,8 @@ pub struct DoubleTalk {
     recent: VecDeque<bool>,
     /// ... and each of the last frames of the canceller's output.
     recent_out: VecDeque<bool>,
-    /// How far over the echo the frame may hold the canceller's output stood in the robot's
-    /// recent frames without the player (dB), the newest last.
+    /// How far under the microphone the canceller's output stood in the robot's recent frames
+    /// (dB), the newest last.
     residual: VecDeque<f64>,
     /// The canceller's output passes whole from and until then (ns).
     hold_from_ns: i64,
@@ -498,9 +504,8 @@ impl DoubleTalk {
     /// The canceller's output as it arrives (mono, `rate_hz`, its first sample heard at
     /// `t_ns`), before [`Self::process`] is given it. The player shows there too: where the
     /// robot's echo is as loud as she is, the microphone stands no higher than the echo it may
-    /// hold, but the canceller's output stands far over what the canceller leaves of the robot
-    /// alone (by [`Config::residual_margin_db`] over the 99th percentile of that, its leaks
-    /// included, over the last [`Config::residual_window_s`] of the robot's speech).
+    /// hold, but an adapted canceller passes her nearly whole while it takes most of the robot
+    /// out (see [`Config::player_share_db`]).
     pub fn canceller(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16]) {
         let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let keep = self.frames_of(self.cfg.residual_window_s);
@@ -519,33 +524,31 @@ impl DoubleTalk {
                 self.recent_out.clear();
                 continue;
             };
-            let echo = self.echo_at(i, path);
             // Only where the robot is heard: elsewhere the microphone tells her apart.
-            let audible = echo >= floor + self.cfg.over_floor_db;
-            let over = l - echo;
-            let known = self.residual.len() >= self.frames_of(1.0);
-            let threshold = known.then(|| {
+            let audible = self.echo_at(i, path) >= floor + self.cfg.over_floor_db;
+            let share = l - mic;
+            // How much the canceller takes out of the robot lately (its median, which neither
+            // its leaks nor a player it missed move much); none yet, it has not adapted.
+            let erle = (self.residual.len() >= self.frames_of(1.0)).then(|| {
                 let mut r: Vec<f64> = self.residual.iter().copied().collect();
                 r.sort_by(f64::total_cmp);
-                r[r.len() * 99 / 100] + self.cfg.residual_margin_db
+                -r[r.len() / 2]
             });
             let like_player = audible
-                && threshold.is_some_and(|th| over >= th)
-                && l >= mic - self.cfg.player_share_db
+                && erle.is_some_and(|e| e >= self.cfg.min_erle_db)
+                && share >= -self.cfg.player_share_db
                 && l >= floor + self.cfg.over_floor_db;
             let holding = t < self.hold_until_ns;
             tracing::trace!(
                 i,
                 out = format!("{l:.1}"),
                 mic = format!("{mic:.1}"),
-                over = format!("{over:.1}"),
-                threshold = format!("{:.1}", threshold.unwrap_or(f64::NAN)),
+                erle = format!("{:.1}", erle.unwrap_or(f64::NAN)),
                 like_player,
                 "canceller's output"
             );
-            // What it leaves of the robot alone, where the robot is heard.
-            if audible && !like_player && !holding {
-                self.residual.push_back(over);
+            if audible && !holding {
+                self.residual.push_back(share);
                 while self.residual.len() > keep {
                     self.residual.pop_front();
                 }
@@ -555,8 +558,9 @@ impl DoubleTalk {
     }
 
     /// A frame at `t` of the microphone (`canceller`: of the canceller's output) like the
-    /// player's or not: she starts speaking when [`Config::onset_frames`] of the last
-    /// [`Config::onset_window`] of the one or the other are, and the canceller's output then
+    /// player's or not: she starts speaking when [`Config::onset_frames`] (of the canceller's:
+    /// [`Config::canceller_onset_frames`]) of the last [`Config::onset_window`] of the one or
+    /// the other are, and the canceller's output then
     /// passes whole (from [`Config::lookback_s`] before) until [`Config::hold_s`] after the last.
     fn player_frame(&mut self, t: i64, like_player: bool, canceller: bool) {
         let window = self.cfg.onset_window.max(1);
@@ -570,7 +574,11 @@ impl DoubleTalk {
         }
         let run = recent.iter().filter(|&&p| p).count();
         let holding = t < self.hold_until_ns;
-        if like_player && (holding || run >= self.cfg.onset_frames) {
+        let onset = match canceller {
+            true => self.cfg.canceller_onset_frames,
+            false => self.cfg.onset_frames,
+        };
+        if like_player && (holding || run >= onset) {
             if !holding {
                 tracing::debug!(
                     frame = self.index(t),
