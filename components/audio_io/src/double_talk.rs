@@ -31,8 +31,9 @@
 //!   heard, and the canceller takes [`Config::min_erle_db`] or more out of the robot lately
 //!   (the median over [`Config::residual_window_s`]), its output stands within
 //!   [`Config::player_share_db`] of the microphone, in [`Config::canceller_onset_frames`] of
-//!   the last [`Config::onset_window`]. That is the player as loud at the microphone as the robot's echo, whom the first
-//!   test misses when a busy machine's timing makes the echo a frame may hold too large.
+//!   the last [`Config::onset_window`]. That is the player as loud at the microphone as the
+//!   robot's echo, whom the first test misses when a busy machine's timing makes the echo a
+//!   frame may hold too large.
 //! - **Her frames are the microphone as it is** ([`Config::pass_microphone`]), from
 //!   [`Config::lookback_s`] before the first until [`Config::hold_s`] after the last (and on
 //!   until she pauses, once the robot's voice has died away): while the robot speaks, the
@@ -560,8 +561,8 @@ impl DoubleTalk {
     /// A frame at `t` of the microphone (`canceller`: of the canceller's output) like the
     /// player's or not: she starts speaking when [`Config::onset_frames`] (of the canceller's:
     /// [`Config::canceller_onset_frames`]) of the last [`Config::onset_window`] of the one or
-    /// the other are, and the canceller's output then
-    /// passes whole (from [`Config::lookback_s`] before) until [`Config::hold_s`] after the last.
+    /// the other are, and her frames then pass (from [`Config::lookback_s`] before) until
+    /// [`Config::hold_s`] after the last.
     fn player_frame(&mut self, t: i64, like_player: bool, canceller: bool) {
         let window = self.cfg.onset_window.max(1);
         let recent = match canceller {
