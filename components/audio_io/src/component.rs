@@ -834,9 +834,11 @@ struct Detector {
     /// The canceller's output held back (first sample's time, samples), while the robot's voice
     /// may be in the room, until the microphone's frames of the next `lookback_s` are known.
     held: std::collections::VecDeque<(i64, Vec<i16>)>,
-    /// The counters `echo_suppressed_frames` and `double_talk_frames`.
+    /// The counters `echo_suppressed_frames`, `double_talk_frames` and
+    /// `double_talk_unheld_frames`.
     suppressed: Arc<std::sync::atomic::AtomicU64>,
     player: Arc<std::sync::atomic::AtomicU64>,
+    unheld: Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl Detector {
@@ -853,6 +855,7 @@ impl Detector {
             held: Default::default(),
             suppressed: counters.counter("echo_suppressed_frames"),
             player: counters.counter("double_talk_frames"),
+            unheld: counters.counter("double_talk_unheld_frames"),
         }
     }
 
@@ -901,6 +904,18 @@ impl Detector {
                 .fetch_add(u64::from(o.suppressed_frames), Ordering::Relaxed);
             self.player
                 .fetch_add(u64::from(o.player_frames), Ordering::Relaxed);
+            if o.unheld_frames > 0 {
+                let before = self
+                    .unheld
+                    .fetch_add(u64::from(o.unheld_frames), Ordering::Relaxed);
+                if before == 0 {
+                    tracing::warn!(
+                        "the player's frames at {t} ns passed as the canceller left them: the \
+                         microphone's samples of their time were not held (a gap in its stream \
+                         or a rate change); counted as double_talk_unheld_frames"
+                    );
+                }
+            }
             ready.push((t, s));
         }
         if let Some(p) = self.dt.path_changed() {

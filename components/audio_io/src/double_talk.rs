@@ -247,6 +247,10 @@ pub struct Outcome {
     pub player_frames: u32,
     /// Frames cut as the robot's.
     pub suppressed_frames: u32,
+    /// Player's frames passed as the canceller's output, the microphone's samples of their time
+    /// not held (a gap in its stream, a rate change): with [`Config::pass_microphone`], each is
+    /// her voice as the canceller left it.
+    pub unheld_frames: u32,
 }
 
 /// Frame levels by index, the newest last, at most `keep` of them.
@@ -396,10 +400,8 @@ impl DoubleTalk {
 
     /// What the robot played (mono, `rate_hz`), its first sample playing at `t_ns`.
     pub fn reference(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16]) {
-        let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let keep = self.keep();
-        for (k, f) in samples.chunks(per_frame).enumerate() {
-            let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+        for (t, f) in frames(t_ns, rate_hz, self.cfg.frame_ns, samples) {
             let i = self.index(t);
             let l = level_db(f);
             self.reference.push(i, l, keep);
@@ -464,7 +466,6 @@ impl DoubleTalk {
 
     /// The microphone as it is (mono, `rate_hz`), its first sample heard at `t_ns`.
     pub fn mic(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16]) {
-        let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let keep = self.keep();
         let rise = self.rise();
         if self.cfg.pass_microphone {
@@ -472,8 +473,7 @@ impl DoubleTalk {
             self.tail.push(t_ns, rate_hz, samples, keep_ns);
         }
         let hold_ns = (self.cfg.hold_s * 1e9) as i64;
-        for (k, f) in samples.chunks(per_frame).enumerate() {
-            let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+        for (t, f) in frames(t_ns, rate_hz, self.cfg.frame_ns, samples) {
             let i = self.index(t);
             let l = level_db(f);
             let floor = self.mic_floor.update(l, rise);
@@ -487,13 +487,14 @@ impl DoubleTalk {
                 }
                 continue;
             }
-            let like_player = self.path.is_some_and(|p| {
-                l >= self.echo_at(i, p) + p.margin_db && l >= floor + self.cfg.over_floor_db
+            let echo = self.path.map(|p| (self.echo_at(i, p), p.margin_db));
+            let like_player = echo.is_some_and(|(echo, margin)| {
+                l >= echo + margin && l >= floor + self.cfg.over_floor_db
             });
             tracing::trace!(
                 i,
                 mic = format!("{l:.1}"),
-                echo = format!("{:.1}", self.path.map_or(f64::NAN, |p| self.echo_at(i, p))),
+                echo = format!("{:.1}", echo.map_or(f64::NAN, |e| e.0)),
                 like_player,
                 holding = t < self.hold_until_ns,
                 "microphone frame"
@@ -508,15 +509,21 @@ impl DoubleTalk {
     /// hold, but an adapted canceller passes her nearly whole while it takes most of the robot
     /// out (see [`Config::player_share_db`]).
     pub fn canceller(&mut self, t_ns: i64, rate_hz: u32, samples: &[i16]) {
-        let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let keep = self.frames_of(self.cfg.residual_window_s);
         // The room's noise as the microphone hears it: the canceller's own output sinks to
         // digital silence where it suppresses, no measure of the room.
         let Some(floor) = self.mic_floor.db else {
             return;
         };
-        for (k, f) in samples.chunks(per_frame).enumerate() {
-            let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+        // How much the canceller takes out of the robot lately (the median of its residuals
+        // before this chunk, which neither its leaks nor a player it missed move much); none
+        // yet, it has not adapted.
+        let erle = (self.residual.len() >= self.frames_of(1.0)).then(|| {
+            let mut r: Vec<f64> = self.residual.iter().copied().collect();
+            r.sort_by(f64::total_cmp);
+            -r[r.len() / 2]
+        });
+        for (t, f) in frames(t_ns, rate_hz, self.cfg.frame_ns, samples) {
             let i = self.index(t);
             let l = level_db(f);
             // The microphone's frame of the same time, heard (not a stream's silent start).
@@ -528,13 +535,6 @@ impl DoubleTalk {
             // Only where the robot is heard: elsewhere the microphone tells her apart.
             let audible = self.echo_at(i, path) >= floor + self.cfg.over_floor_db;
             let share = l - mic;
-            // How much the canceller takes out of the robot lately (its median, which neither
-            // its leaks nor a player it missed move much); none yet, it has not adapted.
-            let erle = (self.residual.len() >= self.frames_of(1.0)).then(|| {
-                let mut r: Vec<f64> = self.residual.iter().copied().collect();
-                r.sort_by(f64::total_cmp);
-                -r[r.len() / 2]
-            });
             let like_player = audible
                 && erle.is_some_and(|e| e >= self.cfg.min_erle_db)
                 && share >= -self.cfg.player_share_db
@@ -689,16 +689,16 @@ impl DoubleTalk {
     /// the robot's residue in it cut in place, and the player's frames replaced by the
     /// microphone's (with [`Config::pass_microphone`], where the microphone's are held).
     pub fn process(&mut self, t_ns: i64, rate_hz: u32, samples: &mut [i16]) -> Outcome {
-        let per_frame = (rate_hz as usize * self.cfg.frame_ns as usize / 1_000_000_000).max(1);
         let rise = self.rise();
         let mut outcome = Outcome::default();
+        let per_frame = samples_per_frame(rate_hz, self.cfg.frame_ns);
         for (k, f) in samples.chunks_mut(per_frame).enumerate() {
-            let t = t_ns + (k * per_frame) as i64 * 1_000_000_000 / i64::from(rate_hz.max(1));
+            let t = frame_time(t_ns, rate_hz, k * per_frame);
             let out = level_db(f);
             let floor = self.out_floor.update(out, rise);
             let passed = t >= self.hold_from_ns && t < self.hold_until_ns;
-            if passed && self.cfg.pass_microphone {
-                self.tail.copy(t, rate_hz, f);
+            if passed && self.cfg.pass_microphone && !self.tail.copy(t, rate_hz, f) {
+                outcome.unheld_frames += 1;
             }
             if !self.robot_at(self.index(t)) {
                 self.ramp(f, 1.0);
@@ -730,6 +730,30 @@ impl DoubleTalk {
             *x = (f64::from(*x) * g).round() as i16;
         }
     }
+}
+
+/// Samples in a frame of `frame_ns` at `rate_hz` (at least one).
+fn samples_per_frame(rate_hz: u32, frame_ns: i64) -> usize {
+    (rate_hz as usize * frame_ns as usize / 1_000_000_000).max(1)
+}
+
+/// When sample `n` of a stream whose first sample is heard at `t_ns` is heard.
+fn frame_time(t_ns: i64, rate_hz: u32, n: usize) -> i64 {
+    t_ns + n as i64 * 1_000_000_000 / i64::from(rate_hz.max(1))
+}
+
+/// The frames of `samples` (`rate_hz`, the first heard at `t_ns`), each with when it is heard.
+fn frames(
+    t_ns: i64,
+    rate_hz: u32,
+    frame_ns: i64,
+    samples: &[i16],
+) -> impl Iterator<Item = (i64, &[i16])> {
+    let per_frame = samples_per_frame(rate_hz, frame_ns);
+    samples
+        .chunks(per_frame)
+        .enumerate()
+        .map(move |(k, f)| (frame_time(t_ns, rate_hz, k * per_frame), f))
 }
 
 /// Pearson's correlation of the pairs (0 when either side does not vary).
@@ -789,6 +813,8 @@ mod tests {
         player_loss_db: f64,
         /// The microphone's levels, frame by frame.
         heard: Vec<f64>,
+        /// Frames the microphone's stream does not deliver (lost on the way).
+        mic_lost: std::ops::Range<usize>,
     }
 
     impl Room {
@@ -800,6 +826,7 @@ mod tests {
                 played: Vec::new(),
                 player_loss_db: 0.0,
                 heard: Vec::new(),
+                mic_lost: 0..0,
             }
         }
 
@@ -833,13 +860,16 @@ mod tests {
                 let mic = sum_db(echo, p, -70.0);
                 let out = sum_db(echo - erle, p - self.player_loss_db, -75.0);
                 self.heard.push(mic);
-                self.d.mic(t, RATE, &frame_at(mic, k));
+                if !self.mic_lost.contains(&k) {
+                    self.d.mic(t, RATE, &frame_at(mic, k));
+                }
                 let mut o = frame_at(out, k);
                 self.d.canceller(t, RATE, &o);
                 let oc = self.d.process(t, RATE, &mut o);
                 sum.robot_frames += oc.robot_frames;
                 sum.player_frames += oc.player_frames;
                 sum.suppressed_frames += oc.suppressed_frames;
+                sum.unheld_frames += oc.unheld_frames;
                 levels.push(level_db(&o));
             }
             (sum, levels)
@@ -927,6 +957,7 @@ mod tests {
         room.run(200, |k| Some(voice(k)), |_| None, 20.0);
         let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 20.0);
         assert!(o.player_frames >= 40, "{o:?}");
+        assert_eq!(o.unheld_frames, 0, "{o:?}");
         let heard = &room.heard[room.heard.len() - 50..];
         for (k, (&out, &mic)) in levels.iter().zip(heard).enumerate().skip(10) {
             assert!(
@@ -934,6 +965,25 @@ mod tests {
                 "frame {k}: {out:.1} dBFS out, {mic:.1} heard"
             );
         }
+    }
+
+    /// Five frames of the microphone's stream lost while she speaks: those frames pass as the
+    /// canceller left them, and are counted; the next ones are the microphone's again.
+    #[test]
+    fn the_players_frames_the_microphone_lost_are_counted() {
+        let mut room = Room::new(12, -3.0);
+        room.player_loss_db = 30.0;
+        room.run(200, |k| Some(voice(k)), |_| None, 20.0);
+        room.mic_lost = 230..235;
+        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 20.0);
+        assert!(o.player_frames >= 40, "{o:?}");
+        assert_eq!(o.unheld_frames, 5, "{o:?}");
+        let heard = &room.heard[200..];
+        for k in (10..50).filter(|k| !(30..35).contains(k)) {
+            assert!((levels[k] - heard[k]).abs() < 0.5, "frame {k}");
+        }
+        // The canceller's output: 30 dB under her.
+        assert!(levels[32] < heard[32] - 20.0, "{levels:?}");
     }
 
     #[test]

@@ -39,8 +39,9 @@
 //!   by a double-talk detector ([`double_talk`], `--residual-echo suppress`, the default), which
 //!   also captures the microphone as it is and compares it with what the robot played: counted
 //!   as `echo_suppressed_frames`, the frames taken for the player over the robot as
-//!   `double_talk_frames`, the player's starts as `double_talk_onsets`; the echo path it
-//!   measures is logged.
+//!   `double_talk_frames` (of those, the ones whose microphone samples were not held, passed
+//!   as the canceller left them, as `double_talk_unheld_frames`), the player's starts as
+//!   `double_talk_onsets`; the echo path it measures is logged.
 //! - **Yielding to the person** (`--pause-on-speech true`, behind an echo canceller): when the
 //!   double-talk detector hears the player start over the robot, or `speech/activity` says
 //!   someone started speaking while the robot speaks, its voice stops at once (what the server
