@@ -9,9 +9,11 @@
 //! adapted acoustic model when it is built (`--acoustic-model DIR|stock` to choose), `--denoise`
 //! to add the enhancement. `--conditions clean,babble_10` measures some conditions only.
 //!
-//! Figures per game and condition: command accuracy (the right command, not rejected), the
-//! errors split by cause (the end-pointer did not cut exactly one utterance / one utterance but
-//! wrong words / right words rejected as out of grammar), false accepts (a command the dialog
+//! Figures per game and condition: command accuracy (the clip gave the dialog one command, the
+//! right one, not rejected; other utterances cut from it out of grammar, background talk the
+//! dialog ignores, are counted apart), the errors split by cause (the end-pointer did not cut
+//! exactly one utterance / one utterance but wrong words / right words rejected as out of
+//! grammar), false accepts (a command the dialog
 //! would take at once, confidence at or above its high threshold 0.7, that nobody gave: wrong
 //! words, out-of-grammar speech or background talk taken for a command; per utterance heard),
 //! real-time factor, and the latency from the end of speech (the last sample of the clean speech
@@ -67,7 +69,10 @@ const HIGH: f64 = 0.7;
 const CHUNK: usize = 320;
 
 /// Feed `audio` as a live stream; the results with their end-of-speech-to-result latency (s)
-/// given the speech ends at `speech_end_s` on this clip.
+/// given the speech ends at `speech_end_s` on this clip. The stream goes on into the next clip
+/// (no flush), as a microphone's does: an utterance still open at a clip's end is the next
+/// clip's. (Ending the stream after each clip kept talk that had opened an utterance from ever
+/// becoming the end-pointer's background, which no microphone does.)
 fn stream(rec: &mut Recognizer, audio: &[i16], speech_end_s: f64) -> Vec<(Recognized, f64)> {
     let mut out = vec![];
     let mut pos = 0;
@@ -80,10 +85,20 @@ fn stream(rec: &mut Recognizer, audio: &[i16], speech_end_s: f64) -> Vec<(Recogn
             out.push((r, pos as f64 / 16000.0 - speech_end_s + done));
         }
     }
-    if let Some(r) = rec.flush().unwrap() {
-        out.push((r, f64::NAN));
-    }
     out
+}
+
+/// The end of a stream of clips (commands, out-of-grammar sentences, talk alone: each kind is
+/// a stream of its own, so that what one kind leaves open is not scored as the next's): an
+/// utterance still open is heard too, and counted among the false accepts if it is a sure
+/// command.
+fn end_stream(rec: &mut Recognizer, t: &mut Tally) {
+    if let Some(r) = rec.flush().unwrap() {
+        t.heard += 1;
+        if r.command != Command::None && r.confidence >= HIGH {
+            t.false_accepts += 1;
+        }
+    }
 }
 
 fn pct(p: &[f64], q: f64) -> f64 {
@@ -108,6 +123,9 @@ fn others(talkers: &[Vec<i16>], vi: usize) -> Vec<Vec<i16>> {
 struct Tally {
     n: usize,
     ok: usize,
+    /// Right, with other utterances cut from the clip too, all out of grammar (background
+    /// talk, which the dialog ignores).
+    ok_with_talk: usize,
     vad: usize,
     dec: usize,
     rej: usize,
@@ -238,20 +256,32 @@ fn main() {
                         g.0.command != Command::None && g.0.command != *c && g.0.confidence >= HIGH
                     })
                     .count();
-                if got.len() != 1 {
+                // What the dialog acts on: the utterances not out of grammar.
+                let commands: Vec<&Recognized> = got
+                    .iter()
+                    .map(|g| &g.0)
+                    .filter(|r| r.command != Command::None)
+                    .collect();
+                if let [r] = commands[..]
+                    && r.command == *c
+                {
+                    t.ok += 1;
+                    if got.len() > 1 {
+                        t.ok_with_talk += 1;
+                    }
+                    if r.confidence >= HIGH {
+                        t.right_sure += 1;
+                    }
+                } else if got.len() != 1 {
                     t.vad += 1;
                 } else if Command::from_phrase(game, &got[0].0.text) != *c {
                     t.dec += 1;
-                } else if got[0].0.command != *c {
-                    t.rej += 1;
                 } else {
-                    t.ok += 1;
-                    if got[0].0.confidence >= HIGH {
-                        t.right_sure += 1;
-                    }
+                    t.rej += 1;
                 }
                 lat.extend(got.iter().map(|g| g.1).filter(|l| l.is_finite()));
             }
+            end_stream(&mut rec, &mut t);
             // Out-of-grammar sentences, each voice, in the same condition.
             for (i, s) in OOG.iter().enumerate() {
                 for (vi, v) in VOICES.iter().enumerate() {
@@ -284,6 +314,7 @@ fn main() {
                     }
                 }
             }
+            end_stream(&mut rec, &mut t);
             // Background talk and nothing else: no command may come of it.
             if let Condition::Babble(_) = cond {
                 for k in 0..TALK_ALONE {
@@ -315,6 +346,7 @@ fn main() {
                     }
                 }
             }
+            end_stream(&mut rec, &mut t);
             lat.sort_by(f64::total_cmp);
             lat_all.extend(&lat);
             let e = both.entry(cond.name()).or_default();
@@ -325,13 +357,14 @@ fn main() {
                 worst_false = (fa, format!("{} {}", game.name(), cond.name()));
             }
             eprintln!(
-                "{:5} {:>9}: {}/{} = {:.3} right command ({} with confidence >= {HIGH}); errors: end-pointer {}, wrong words {}, rejected {}; end of speech -> result p50 {:.3} s p90 {:.3} s",
+                "{:5} {:>9}: {}/{} = {:.3} right command ({} with confidence >= {HIGH}, {} with talk cut beside it out of grammar); errors: end-pointer {}, wrong words {}, rejected {}; end of speech -> result p50 {:.3} s p90 {:.3} s",
                 game.name(),
                 cond.name(),
                 t.ok,
                 t.n,
                 t.ok as f64 / t.n as f64,
                 t.right_sure,
+                t.ok_with_talk,
                 t.vad,
                 t.dec,
                 t.rej,
@@ -358,8 +391,9 @@ fn main() {
                 }
             );
             json.push(format!(
-                "\"{g}_accuracy_{c}\": {:.4}, \"{g}_false_accept_rate_{c}\": {:.4}",
+                "\"{g}_accuracy_{c}\": {:.4}, \"{g}_sure_right_{c}\": {:.4}, \"{g}_false_accept_rate_{c}\": {:.4}",
                 t.ok as f64 / t.n as f64,
+                t.right_sure as f64 / t.n as f64,
                 fa,
                 g = game.name(),
                 c = cond.name(),

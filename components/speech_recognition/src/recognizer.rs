@@ -55,6 +55,9 @@ pub struct Recognized {
     pub garbage_text: String,
     /// Cut at the maximum utterance length.
     pub forced: bool,
+    /// Cut over other people's talk (the confidence is calibrated for it, see
+    /// [`crate::confidence`]).
+    pub over_talk: bool,
     /// The command search's distinct N-best sentences and path scores (nats), best first (empty
     /// unless [`RecognizerConfig::nbest`] is set; a debugging aid).
     pub nbest: Vec<(String, f64)>,
@@ -568,6 +571,7 @@ impl Recognizer {
             s_gar,
             frames,
             snr_db,
+            seg.over_talk,
         );
         Ok(Recognized {
             game: self.game,
@@ -582,6 +586,7 @@ impl Recognizer {
             snr_db,
             garbage_text: gar.map(|h| h.text).unwrap_or_default(),
             forced: seg.forced,
+            over_talk: seg.over_talk,
             nbest: g.nbest,
         })
     }
@@ -595,6 +600,7 @@ impl Recognizer {
             forced: false,
             // A whole recording: which part is background is unknown, so no enhancement.
             lead_len: 0,
+            over_talk: false,
         })
     }
 }

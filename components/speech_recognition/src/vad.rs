@@ -93,6 +93,9 @@ pub struct Segment {
     /// Samples at the start that were heard before the speech started (the pre-roll without its
     /// loud frames): background, usable as a noise estimate.
     pub lead_len: usize,
+    /// Cut over other people's talk (the background was speech-like when it opened, see the
+    /// module doc).
+    pub over_talk: bool,
 }
 
 impl Segment {
@@ -334,6 +337,7 @@ impl Vad {
             samples: open.samples,
             forced,
             lead_len: open.lead_len,
+            over_talk: open.talk_threshold.is_some(),
         })
     }
 
