@@ -13,12 +13,12 @@
 //! right one, not rejected; other utterances cut from it out of grammar, background talk the
 //! dialog ignores, are counted apart), the errors split by cause (the end-pointer did not cut
 //! exactly one utterance / one utterance but wrong words / right words rejected as out of
-//! grammar), false accepts (a command the dialog
-//! would take at once, confidence at or above its high threshold 0.7, that nobody gave: wrong
-//! words, out-of-grammar speech or background talk taken for a command; per utterance heard),
-//! real-time factor, and the latency from the end of speech (the last sample of the clean speech
-//! louder than 300/32768) to the result, counting the stream time until the chunk in which the
-//! end-pointer cut it plus the processing of that chunk.
+//! grammar), false accepts (a command the dialog would take at once, confidence at or above
+//! its high threshold 0.7, that nobody gave: wrong words, out-of-grammar speech or background
+//! talk taken for a command; per utterance heard), real-time factor, and the latency from the
+//! end of speech (the last sample of the clean speech louder than 300/32768) to the result,
+//! counting the stream time until the chunk in which the end-pointer cut it plus the processing
+//! of that chunk.
 //!
 //! Evaluation set only: these 6 voices, their background talk (`corpus::EVAL_BABBLE`, said by
 //! the other evaluation voices) and noise seeds 1.. were not used to tune anything; the tuning
@@ -33,7 +33,7 @@
 //! `<n> <game> <condition> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
 //! comparison of `scripts/bench.d/speech.sh`. The last line printed is a JSON summary.
 
-use audio::signal::{NoiseRng, active_power, babble};
+use audio::signal::{NoiseRng, babble};
 use audio::synth::synthesize_16k;
 use audio::wav::{Pcm, encode};
 use interfaces::msg::command::{Command, Game};
@@ -72,7 +72,8 @@ const CHUNK: usize = 320;
 /// given the speech ends at `speech_end_s` on this clip. The stream goes on into the next clip
 /// (no flush), as a microphone's does: an utterance still open at a clip's end is the next
 /// clip's. (Ending the stream after each clip kept talk that had opened an utterance from ever
-/// becoming the end-pointer's background, which no microphone does.)
+/// becoming the end-pointer's background, which no microphone does; it also decoded whole
+/// clips that the end-pointer had not cut.)
 fn stream(rec: &mut Recognizer, audio: &[i16], speech_end_s: f64) -> Vec<(Recognized, f64)> {
     let mut out = vec![];
     let mut pos = 0;
@@ -207,7 +208,6 @@ fn main() {
             acoustic_model: model.clone(),
             ..RecognizerConfig::default()
         };
-        let mut rec = Recognizer::shipped(game, cfg).unwrap();
         // The clean speech of every (voice, speed, command), synthesized once.
         let mut said = vec![];
         for (vi, v) in VOICES.iter().enumerate() {
@@ -220,6 +220,9 @@ fn main() {
             }
         }
         for &cond in &conditions {
+            // Each condition is a room the robot listens in from the start: a recognizer of its
+            // own (its end-pointer learns that room's noise), fed one continuous stream.
+            let mut rec = Recognizer::shipped(game, cfg.clone()).unwrap();
             let mut t = Tally::default();
             let mut lat = vec![];
             for (clip, (vi, si, c, speech)) in said.iter().enumerate() {
@@ -321,13 +324,8 @@ fn main() {
                     let mut rng =
                         NoiseRng::new((k as u64 + 500).wrapping_mul(0x9E37_79B9_7F4A_7C15));
                     let n = (TALK_ALONE_S * 16_000.0) as usize;
-                    let snr = match cond {
-                        Condition::Babble(s) => s,
-                        _ => unreachable!(),
-                    };
-                    // The talk at the level it has under a command said at this SNR.
-                    let command = &said[k % said.len()].3;
-                    let p = active_power(command) / 10f64.powf(snr / 10.0);
+                    // The talk at the level it has under the commands.
+                    let p = 10f64.powf(corpus::NOISE_DBFS / 10.0);
                     let a: Vec<i16> = babble(&others(&talkers, k % VOICES.len()), n, p, &mut rng)
                         .iter()
                         .map(|x| x.round().clamp(-32768.0, 32767.0) as i16)
@@ -357,7 +355,7 @@ fn main() {
                 worst_false = (fa, format!("{} {}", game.name(), cond.name()));
             }
             eprintln!(
-                "{:5} {:>9}: {}/{} = {:.3} right command ({} with confidence >= {HIGH}, {} with talk cut beside it out of grammar); errors: end-pointer {}, wrong words {}, rejected {}; end of speech -> result p50 {:.3} s p90 {:.3} s",
+                "{:5} {:>9}: {}/{} = {:.3} right command ({} with confidence >= {HIGH}, {} with other utterances cut beside it, out of grammar); errors: end-pointer {}, wrong words {}, rejected {}; end of speech -> result p50 {:.3} s p90 {:.3} s",
                 game.name(),
                 cond.name(),
                 t.ok,

@@ -103,10 +103,12 @@ fn main() {
     let g = Grammar::load(&grammar_dir().join(format!("{}.gram", game.name()))).unwrap();
     // The configured acoustic model (a `-hmm` in `PS_ARGS` wins).
     dc.hmm_dir = cfg.acoustic_model.dir.clone();
-    let mut rec = Recognizer::with_grammar(game, g, cfg, &dc).unwrap();
-    // Samples streamed so far: the recognizer's times count from the first clip's start.
-    let mut streamed = 0usize;
+
     for cond in conditions {
+        // A recognizer per condition: a room the robot listens in from the start.
+        let mut rec = Recognizer::with_grammar(game, g.clone(), cfg.clone(), &dc).unwrap();
+        // Samples streamed so far: the recognizer's times count from the first clip's start.
+        let mut streamed = 0usize;
         let (mut n, mut ok, mut vad, mut dec, mut rej) = (0, 0, 0, 0, 0);
         let mut lines = vec![];
         let mut lat: Vec<f64> = vec![];
@@ -225,12 +227,11 @@ fn main() {
                     clips.push((format!("oog {v} {sentence:?}"), clip));
                 }
             }
-            if let Condition::Babble(snr) = cond {
+            if let Condition::Babble(_) = cond {
                 for k in 0..8u64 {
                     let mut rng = audio::signal::NoiseRng::new(seed0 + 700 + k);
-                    // The talk at the level it has under a command said at this SNR.
-                    let speech = synthesize_16k("touch the ball", &voice(voices[0], 1)).unwrap();
-                    let power = audio::signal::active_power(&speech) / 10f64.powf(snr / 10.0);
+                    // The talk at the level it has under the commands.
+                    let power = 10f64.powf(corpus::NOISE_DBFS / 10.0);
                     let others: Vec<Vec<i16>> = talkers
                         .iter()
                         .skip(k as usize % talkers.len())

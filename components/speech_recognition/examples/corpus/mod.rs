@@ -165,7 +165,25 @@ pub fn babble_talkers(voices: &[&str], sentences: &[&str]) -> Vec<Vec<i16>> {
         .collect()
 }
 
-/// `speech` in condition `cond`: noise or room before and after it. `seed` draws the noise (as
+/// The level of the room's noise or talk in every clip of a noisy condition (dBFS). A room's
+/// noise is steady: the clips of a condition are streamed one after another, as one
+/// microphone's signal, and keep it, while each command is said at the condition's SNR over it.
+/// (Mixing at an SNR scales the noise to each command's level, so the noise jumped by a few dB
+/// from one clip to the next, which no fan does and which an end-pointer takes for speech.)
+pub const NOISE_DBFS: f64 = -45.0;
+
+/// `clip` scaled so that its first `lead_s` (noise or talk only) stand at [`NOISE_DBFS`].
+fn at_noise_level(clip: Vec<i16>, lead_s: f64) -> Vec<i16> {
+    let lead = &clip[..((lead_s * 16_000.0) as usize).min(clip.len())];
+    let p = audio::signal::power(lead);
+    if p <= 0.0 {
+        return clip;
+    }
+    audio::signal::gain_clipped(&clip, (10f64.powf(NOISE_DBFS / 10.0) / p).sqrt())
+}
+
+/// `speech` in condition `cond`: noise or room before and after it (noise and talk at
+/// [`NOISE_DBFS`]). `seed` draws the noise (as
 /// it always has for white noise); for the rooms, babble and the fan it is mixed with `clip`,
 /// the clip's number (which also picks the room), so every clip has a room and a stretch of talk
 /// of its own. `talkers` are the background talkers (for babble).
@@ -187,10 +205,14 @@ pub fn in_condition(
     };
     match cond {
         Condition::Clean => silence(speech, LEAD_S, TRAIL_S, &mut rng),
-        Condition::White(snr) => {
-            mix_at_snr(speech, snr, NoiseKind::White, LEAD_S, TRAIL_S, &mut rng)
-        }
-        Condition::Fan(snr) => mix_at_snr(speech, snr, NoiseKind::Fan, LEAD_S, TRAIL_S, &mut own),
+        Condition::White(snr) => at_noise_level(
+            mix_at_snr(speech, snr, NoiseKind::White, LEAD_S, TRAIL_S, &mut rng),
+            LEAD_S,
+        ),
+        Condition::Fan(snr) => at_noise_level(
+            mix_at_snr(speech, snr, NoiseKind::Fan, LEAD_S, TRAIL_S, &mut own),
+            LEAD_S,
+        ),
         Condition::Reverb => {
             let rt60 = ROOMS_RT60_S[clip % ROOMS_RT60_S.len()];
             let wet = reverberate(speech, rt60, &mut own);
@@ -203,7 +225,10 @@ pub fn in_condition(
         Condition::Babble(snr) => {
             let n = ((BABBLE_LEAD_S + TRAIL_S) * 16_000.0) as usize + speech.len();
             let b = babble(talkers, n, 1e-2, &mut own);
-            mix_with_noise(speech, snr, &b, BABBLE_LEAD_S, TRAIL_S)
+            at_noise_level(
+                mix_with_noise(speech, snr, &b, BABBLE_LEAD_S, TRAIL_S),
+                BABBLE_LEAD_S,
+            )
         }
     }
 }
