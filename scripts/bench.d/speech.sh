@@ -53,7 +53,7 @@ for (game, cond) in sorted(n):
 print(f"pocketsphinx_continuous: {sum(ok.values())}/{sum(n.values())} correct, "
       f"{time.time() - start:.0f} s wall for all files (two at a time, model loaded per file)")
 ours.update(ratios)
-below = [k for (game, cond) in n
+below = [f"{game} {cond}" for (game, cond) in sorted(n)
          if f"{game}_accuracy_{cond}" in ours
          and ours[f"{game}_accuracy_{cond}"] < ours[f"peer_{game}_accuracy_{cond}"]]
 print("below the peer in: " + (", ".join(below) if below else "no condition"))
