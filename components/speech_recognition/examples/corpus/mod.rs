@@ -169,7 +169,7 @@ pub fn babble_talkers(voices: &[&str], sentences: &[&str]) -> Vec<Vec<i16>> {
 /// noise is steady: the clips of a condition are streamed one after another, as one
 /// microphone's signal, and keep it, while each command is said at the condition's SNR over it.
 /// (Mixing at an SNR scales the noise to each command's level, so the noise jumped by a few dB
-/// from one clip to the next, which no fan does and which an end-pointer takes for speech.)
+/// from one clip to the next, which no room's noise does.)
 pub const NOISE_DBFS: f64 = -45.0;
 
 /// `clip` scaled so that its first `lead_s` (noise or talk only) stand at [`NOISE_DBFS`].
