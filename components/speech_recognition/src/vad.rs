@@ -640,7 +640,7 @@ mod tests {
     #[test]
     fn background_talk_is_not_taken_for_speech_and_a_command_over_it_is() {
         use audio::signal::{active_power, babble, power};
-        use audio::synth::{Voice, synthesize_16k};
+        use audio::synth::{Voice, synthesize_16k, talker};
         let sentences = [
             "the bakery on the corner opens at seven every morning",
             "we drove along the coast and stopped for lunch in a small village",
@@ -656,17 +656,7 @@ mod tests {
                     speed_wpm: 160 + 10 * k as u32,
                     pitch: 40 + 5 * k as u8,
                 };
-                sentences
-                    .iter()
-                    .cycle()
-                    .skip(k)
-                    .take(sentences.len())
-                    .flat_map(|s| {
-                        let mut pcm = synthesize_16k(s, &voice).expect("espeak-ng");
-                        pcm.extend(vec![0i16; 3200]);
-                        pcm
-                    })
-                    .collect()
+                talker(&voice, &sentences, k).expect("espeak-ng")
             })
             .collect();
         let command = synthesize_16k("touch the ball", &Voice::default()).expect("espeak-ng");

@@ -422,7 +422,7 @@ fn live_decoding_matches_whole_utterances_and_ends_fast() {
 #[test]
 fn commands_said_over_other_people_talking_are_heard() {
     use audio::signal::{NoiseRng, active_power, babble};
-    use audio::synth::synthesize_16k;
+    use audio::synth::{synthesize_16k, talker};
     let sentences = [
         "the bakery on the corner opens at seven every morning",
         "we drove along the coast and stopped for lunch in a small village",
@@ -434,14 +434,7 @@ fn commands_said_over_other_people_talking_are_heard() {
         .enumerate()
         .map(|(k, v)| {
             let voice = voice(v, 160 + 10 * k as u32, 40 + 5 * k as u8);
-            (0..sentences.len())
-                .flat_map(|i| {
-                    let mut pcm = synthesize_16k(sentences[(i + k) % sentences.len()], &voice)
-                        .expect("espeak-ng speaks");
-                    pcm.extend(vec![0i16; 3200]);
-                    pcm
-                })
-                .collect()
+            talker(&voice, &sentences, k).expect("espeak-ng speaks")
         })
         .collect();
     let player = voice("en-gb", 150, 45);

@@ -90,6 +90,21 @@ pub fn synthesize_16k(text: &str, voice: &Voice) -> Result<Vec<i16>, SynthError>
     ))
 }
 
+/// A background talker (for [`crate::signal::babble`]): `voice` says every one of `sentences`
+/// in turn, starting at sentence `first`, with a breath (0.2 s of silence) after each; 16 kHz
+/// mono.
+pub fn talker(voice: &Voice, sentences: &[&str], first: usize) -> Result<Vec<i16>, SynthError> {
+    let mut out = Vec::new();
+    for i in 0..sentences.len() {
+        out.extend(synthesize_16k(
+            sentences[(i + first) % sentences.len()],
+            voice,
+        )?);
+        out.extend(std::iter::repeat_n(0i16, 3200));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

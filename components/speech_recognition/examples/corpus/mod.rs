@@ -152,15 +152,7 @@ pub fn babble_talkers(voices: &[&str], sentences: &[&str]) -> Vec<Vec<i16>> {
                 speed_wpm: 160 + 15 * vi as u32,
                 pitch: 40 + 5 * vi as u8,
             };
-            (0..sentences.len())
-                .flat_map(|k| {
-                    let s = sentences[(k + vi) % sentences.len()];
-                    let mut pcm = audio::synth::synthesize_16k(s, &voice).unwrap_or_default();
-                    // A breath between sentences.
-                    pcm.extend(std::iter::repeat_n(0i16, 3200));
-                    pcm
-                })
-                .collect()
+            audio::synth::talker(&voice, sentences, vi).unwrap()
         })
         .collect()
 }
