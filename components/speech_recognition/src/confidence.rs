@@ -137,20 +137,33 @@ pub fn estimate_snr_db(samples: &[i16]) -> f64 {
     (10.0 * (speech.max(1e-9) / noise).log10()).clamp(-20.0, 60.0)
 }
 
-/// The verdict on the command search's hypothesis `text` (score `s_cmd`) against the garbage
-/// search's best score `s_gar`, over `frames` frames (scores are natural logs), for an utterance
-/// at `snr_db`, cut over other people's talk or not (`over_talk`).
-#[allow(clippy::too_many_arguments)]
-pub fn verdict(
-    cfg: &ConfidenceConfig,
-    game: Game,
-    text: &str,
-    s_cmd: f64,
-    s_gar: f64,
-    frames: u32,
-    snr_db: f64,
-    over_talk: bool,
-) -> Verdict {
+/// What the two searches made of one utterance: the input of [`verdict`]. Scores are natural
+/// logs.
+#[derive(Debug, Clone, Copy)]
+pub struct Scores<'a> {
+    /// The command search's hypothesis and its path score.
+    pub text: &'a str,
+    pub command_ln: f64,
+    /// The garbage search's best path score (−∞ when it found nothing).
+    pub garbage_ln: f64,
+    /// Frames (10 ms) the searches decoded.
+    pub frames: u32,
+    /// The utterance's estimated SNR ([`estimate_snr_db`]).
+    pub snr_db: f64,
+    /// Cut over other people's talk ([`crate::vad::Segment::over_talk`]).
+    pub over_talk: bool,
+}
+
+/// The verdict on an utterance's command hypothesis against the garbage search's.
+pub fn verdict(cfg: &ConfidenceConfig, game: Game, u: &Scores) -> Verdict {
+    let Scores {
+        text,
+        command_ln: s_cmd,
+        garbage_ln: s_gar,
+        frames,
+        snr_db,
+        over_talk,
+    } = *u;
     let q = 1.0 / (1.0 + (-cfg.snr_slope_per_db * (snr_db - cfg.snr_mid_db)).exp());
     let (scale, penalty) = if over_talk {
         (cfg.talk_acoustic_scale, cfg.talk_garbage_penalty)
@@ -208,88 +221,62 @@ mod tests {
     /// So clean that q = 1 to 1e-4.
     const CLEAN: f64 = 1000.0;
 
+    /// A touch-game utterance heard over quiet (clean, no talk).
+    fn heard(text: &str, command_ln: f64, garbage_ln: f64, frames: u32) -> Scores<'_> {
+        Scores {
+            text,
+            command_ln,
+            garbage_ln,
+            frames,
+            snr_db: CLEAN,
+            over_talk: false,
+        }
+    }
+
+    fn judge(u: Scores) -> Verdict {
+        verdict(&C, Game::Touch, &u)
+    }
+
     #[test]
     fn the_posterior_is_a_logistic_of_the_per_frame_ratio() {
         // Garbage 1 nat/frame better than the command, penalty 1: even odds.
-        let v = verdict(
-            &C,
-            Game::Touch,
-            "touch the ball",
-            -300.0,
-            -200.0,
-            100,
-            CLEAN,
-            false,
-        );
+        let v = judge(heard("touch the ball", -300.0, -200.0, 100));
         assert_eq!(v.command, Command::TouchBall);
         assert!((v.confidence - 0.5).abs() < 1e-12, "{v:?}");
         assert!((v.llr_per_frame + 1.0).abs() < 1e-12);
         // Command as good as garbage: 1 / (1 + e^-2).
-        let v = verdict(
-            &C,
-            Game::Touch,
-            "touch the ball",
-            -200.0,
-            -200.0,
-            100,
-            CLEAN,
-            false,
-        );
+        let v = judge(heard("touch the ball", -200.0, -200.0, 100));
         assert!((v.confidence - 1.0 / (1.0 + (-2.0f64).exp())).abs() < 1e-12);
         // Monotone in the ratio.
-        let w = verdict(
-            &C,
-            Game::Touch,
-            "touch the ball",
-            -250.0,
-            -200.0,
-            100,
-            CLEAN,
-            false,
-        );
+        let w = judge(heard("touch the ball", -250.0, -200.0, 100));
         assert!(w.confidence < v.confidence && w.confidence > 0.5);
     }
 
     #[test]
     fn speech_the_garbage_explains_much_better_is_out_of_grammar() {
         // 2 nats/frame worse than garbage: p = 1 / (1 + e^2) = 0.12 < 0.3.
-        let v = verdict(
-            &C,
-            Game::Touch,
-            "well done",
-            -400.0,
-            -200.0,
-            100,
-            CLEAN,
-            false,
-        );
+        let v = judge(heard("well done", -400.0, -200.0, 100));
         assert_eq!(v.command, Command::None);
         assert!(v.confidence < 0.3 && v.confidence > 0.0, "{v:?}");
     }
 
     #[test]
     fn nothing_decoded_is_zero_and_no_garbage_is_certain() {
-        let v = verdict(&C, Game::Touch, "", -1.0, -1.0, 10, CLEAN, false);
+        let v = judge(heard("", -1.0, -1.0, 10));
         assert_eq!((v.command, v.confidence), (Command::None, 0.0));
-        let v = verdict(&C, Game::Touch, "stop", -1.0, -1.0, 0, CLEAN, false);
+        let v = judge(heard("stop", -1.0, -1.0, 0));
         assert_eq!((v.command, v.confidence), (Command::None, 0.0));
-        let v = verdict(
-            &C,
-            Game::Touch,
-            "stop",
-            -100.0,
-            f64::NEG_INFINITY,
-            10,
-            CLEAN,
-            false,
-        );
+        let v = judge(heard("stop", -100.0, f64::NEG_INFINITY, 10));
         assert_eq!((v.command, v.confidence), (Command::Stop, 1.0));
     }
 
     #[test]
     fn noise_lowers_the_confidence_but_not_the_command() {
-        let clean = verdict(&C, Game::Touch, "stop", -100.0, -100.0, 10, CLEAN, false);
-        let noisy = verdict(&C, Game::Touch, "stop", -100.0, -100.0, 10, 5.0, false);
+        let clean = judge(heard("stop", -100.0, -100.0, 10));
+        let noisy = judge(Scores {
+            snr_db: 5.0,
+            ..heard("stop", -100.0, -100.0, 10)
+        });
         assert_eq!(noisy.command, Command::Stop);
         assert!((noisy.p_in_grammar - clean.p_in_grammar).abs() < 1e-12);
         let q = 1.0 / (1.0 + (-0.155f64 * 4.5).exp());
@@ -305,21 +292,30 @@ mod tests {
     /// ratio (the talk's scale).
     #[test]
     fn over_talk_a_command_behind_garbage_is_heard() {
-        let quiet = verdict(&C, Game::Touch, "stop", -300.0, -100.0, 100, CLEAN, false);
+        let quiet = judge(heard("stop", -300.0, -100.0, 100));
         assert_eq!(quiet.command, Command::None, "{quiet:?}");
-        let talk = verdict(&C, Game::Touch, "stop", -300.0, -100.0, 100, CLEAN, true);
+        let talk = judge(Scores {
+            over_talk: true,
+            ..heard("stop", -300.0, -100.0, 100)
+        });
         assert_eq!(talk.command, Command::Stop, "{talk:?}");
         // p = 1 / (1 + e^-(1 · (-2 + 3))).
         let p = 1.0 / (1.0 + (-1.0f64).exp());
         assert!((talk.p_in_grammar - p).abs() < 1e-12, "{talk:?}");
         assert!((talk.confidence - p).abs() < 1e-4, "{talk:?}");
         // A command the garbage explains far better is out of grammar over talk too.
-        let v = verdict(&C, Game::Touch, "stop", -600.0, -100.0, 100, CLEAN, true);
+        let v = judge(Scores {
+            over_talk: true,
+            ..heard("stop", -600.0, -100.0, 100)
+        });
         assert_eq!(v.command, Command::None, "{v:?}");
         // As good as garbage: surer over quiet (scale 2, penalty 1) than over talk (scale 1,
         // penalty 3) at the same ratio: e^-2 against e^-3.
-        let quiet = verdict(&C, Game::Touch, "stop", -100.0, -100.0, 10, CLEAN, false);
-        let talk = verdict(&C, Game::Touch, "stop", -100.0, -100.0, 10, CLEAN, true);
+        let quiet = judge(heard("stop", -100.0, -100.0, 10));
+        let talk = judge(Scores {
+            over_talk: true,
+            ..heard("stop", -100.0, -100.0, 10)
+        });
         assert!(talk.p_in_grammar > quiet.p_in_grammar, "{talk:?} {quiet:?}");
     }
 

@@ -5,7 +5,7 @@
 //! utterance, so their cepstral-mean state stays the same; the command comes from the first and
 //! its confidence from the comparison of the two path scores ([`crate::confidence`]).
 
-use crate::confidence::{ConfidenceConfig, estimate_snr_db, verdict};
+use crate::confidence::{ConfidenceConfig, Scores, estimate_snr_db, verdict};
 use crate::denoise::{DenoiseConfig, Denoiser};
 use crate::garbage::{
     Dictionary, GarbageError, garbage_jsgf, load_fillers, load_pronunciations,
@@ -566,12 +566,14 @@ impl Recognizer {
         let v = verdict(
             &self.cfg.confidence,
             self.game,
-            &g.text,
-            g.path_score_ln,
-            s_gar,
-            frames,
-            snr_db,
-            seg.over_talk,
+            &Scores {
+                text: &g.text,
+                command_ln: g.path_score_ln,
+                garbage_ln: s_gar,
+                frames,
+                snr_db,
+                over_talk: seg.over_talk,
+            },
         );
         Ok(Recognized {
             game: self.game,

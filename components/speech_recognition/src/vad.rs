@@ -14,20 +14,25 @@
 //! - It is **cut** at `max_utterance_s` (marked `forced`), and dropped if the loud part lasted
 //!   less than `min_speech_s` (a click, a cough).
 //!
-//! **Background talk.** Other people talking in the room (babble) is no steady noise: its level
-//! swings by 10 dB and more from one syllable to the next, so a floor that follows the quietest
-//! frames sits far under it and every syllable of it would start an utterance. The detector
-//! therefore also keeps the levels of the last `background_s` of frames heard outside
-//! utterances (and those of an utterance cut at `max_utterance_s` or dropped as too short: they
-//! were the background too). When their spread (90th minus 20th percentile) is at least
-//! `background_spread_db` and most of them are loud over the floor (talk goes on; the
-//! reverberation of a room after speech dies away), the background is speech-like and a frame
-//! is loud only if it is also
-//! `background_margin_db` over the background's 90th percentile: a command said over the talk
-//! (louder than it, as a person speaking to the robot is) starts an utterance, the talk does
-//! not; such an utterance keeps only `talk_margin_s` of the talk before and after it (the
-//! pre-roll and the tail are talk, which a decoder would take for words). Steady noise (a fan, an air conditioner, white noise) has a spread of a few dB and is
-//! left to the floor alone.
+//! **The background's swings.** The floor is the quietest frames', but a noise's 10 ms levels
+//! swing around its mean: white noise's by a dB, a fan's (its power is low-frequency) by 3 dB
+//! and more, so a floor under a fan sits so far below most of its frames that the fan itself is
+//! loud and an utterance never ends. The detector therefore also keeps the levels of the last
+//! `background_s` of frames heard outside utterances (not the loud ones that open one; but those
+//! of an utterance cut at
+//! `max_utterance_s` or dropped as too short: they were the background too), and a frame is
+//! loud only if it is also `background_margin_db` over the background's 90th percentile (with
+//! the same hysteresis while an utterance is open). Over white noise the floor decides; over a
+//! fan this does.
+//!
+//! **Background talk.** Other people talking in the room (babble) swings by 10 dB and more from
+//! one syllable to the next. When the background's spread (90th minus 20th percentile) is at
+//! least `background_spread_db` and most of it is loud over the floor (talk goes on; the
+//! reverberation of a room after speech dies away), the background is talk: the threshold over
+//! its 90th percentile lets a command said over it (louder than it, as a person speaking to the
+//! robot is) start an utterance and not the talk, and such an utterance keeps only
+//! `talk_margin_s` of the talk before and after it (the pre-roll and the tail are talk, which a
+//! decoder would take for words). It is marked [`Segment::over_talk`].
 //!
 //! Times are sample indices on the stream (from 0), so the caller turns them into seconds.
 
@@ -119,8 +124,10 @@ struct Open {
     /// The smoothed level of each frame since it opened (dBFS): the background's, if it turns
     /// out to be no utterance.
     levels: Vec<f64>,
-    /// The background talk's threshold when it opened (see [`Vad::talk_threshold`]).
-    talk_threshold: Option<f64>,
+    /// The background's threshold when it opened (see [`Vad::background_threshold`]).
+    threshold: Option<f64>,
+    /// Whether the background was talk when it opened (see [`Vad::background_is_talk`]).
+    over_talk: bool,
 }
 
 /// The end-pointer; feed it any chunk sizes.
@@ -137,6 +144,9 @@ pub struct Vad {
     /// After digital silence, the levels of the room's first frames (see [`SETTLE_FRAMES`]).
     settling: Vec<f64>,
     loud_run: usize,
+    /// The levels of the loud frames of `loud_run`: the background's if the run ends before it
+    /// opens an utterance, the utterance's if it opens one.
+    run_levels: Vec<f64>,
     open: Option<Open>,
     /// Stream position of the first sample of `pending`.
     pos: u64,
@@ -200,6 +210,7 @@ impl Vad {
             silence_first: false,
             settling: Vec::new(),
             loud_run: 0,
+            run_levels: Vec::new(),
             open: None,
             pos: 0,
             background: VecDeque::new(),
@@ -228,22 +239,34 @@ impl Vad {
         self.background_sorted.insert(i, level);
     }
 
-    /// The level a frame must reach to be speech over background talk (dBFS), when the
-    /// background is speech-like (see the module doc); `None` for steady noise, or before a
-    /// second of background was heard.
-    pub fn talk_threshold(&self) -> Option<f64> {
+    /// The `p` quantile of the background's levels (dBFS), once `min_s` of background was
+    /// heard.
+    fn background_quantile(&self, p: f64, min_s: f64) -> Option<f64> {
         let b = &self.background_sorted;
-        if b.len() < Self::frames(1.0) {
-            return None;
-        }
-        let q = |p: f64| b[((b.len() - 1) as f64 * p).round() as usize];
-        let (low, high) = (q(0.2), q(0.9));
+        (!b.is_empty() && b.len() >= Self::frames(min_s))
+            .then(|| b[((b.len() - 1) as f64 * p).round() as usize])
+    }
+
+    /// The level a frame must reach to stand out of the background's own swings (dBFS):
+    /// `background_margin_db` over its 90th percentile (see the module doc); `None` before
+    /// 100 ms of background was heard.
+    pub fn background_threshold(&self) -> Option<f64> {
+        Some(self.background_quantile(0.9, 0.1)? + self.cfg.background_margin_db)
+    }
+
+    /// Whether the background is other people's talk (see the module doc): `None` before a
+    /// second of background was heard.
+    pub fn background_is_talk(&self) -> Option<bool> {
+        let b = &self.background_sorted;
+        let (low, high) = (
+            self.background_quantile(0.2, 1.0)?,
+            self.background_quantile(0.9, 1.0)?,
+        );
         // Talk goes on: most of it is loud over the floor. A room that rang after speech (its
         // reverberation decaying into quiet) or a few loud sounds in steady noise is not talk.
         let floor = self.floor_db?;
         let loud = b.len() - b.partition_point(|&x| x < floor + self.cfg.start_db);
-        (high - low >= self.cfg.background_spread_db && loud * 2 >= b.len())
-            .then_some(high + self.cfg.background_margin_db)
+        Some(high - low >= self.cfg.background_spread_db && loud * 2 >= b.len())
     }
 
     /// Whether an utterance is under way.
@@ -275,9 +298,10 @@ impl Vad {
 
     /// The quiet kept after an utterance's last loud frame (frames): less over talk.
     fn tail_frames(&self, open: &Open) -> usize {
-        Self::frames(match open.talk_threshold {
-            Some(_) => self.cfg.talk_margin_s,
-            None => self.cfg.tail_s,
+        Self::frames(if open.over_talk {
+            self.cfg.talk_margin_s
+        } else {
+            self.cfg.tail_s
         })
     }
 
@@ -337,7 +361,7 @@ impl Vad {
             samples: open.samples,
             forced,
             lead_len: open.lead_len,
-            over_talk: open.talk_threshold.is_some(),
+            over_talk: open.over_talk,
         })
     }
 
@@ -407,29 +431,41 @@ impl Vad {
             self.floor_db = Some(new_floor);
         }
         let above = level - floor;
-        // Over background talk, the talk's threshold too: the one in force when the utterance
-        // opened, while it is open.
-        let talk = match &self.open {
-            Some(open) => open.talk_threshold,
-            None => self.talk_threshold(),
+        // The background's threshold too: the one in force when the utterance opened, while it
+        // is open.
+        let (threshold, talk) = match &self.open {
+            Some(open) => (open.threshold, open.over_talk),
+            None => (
+                self.background_threshold(),
+                self.background_is_talk().unwrap_or(false),
+            ),
         };
         let loud = level > self.cfg.min_level_dbfs
             && above >= self.cfg.start_db
-            && talk.is_none_or(|t| level >= t);
+            && threshold.is_none_or(|t| level >= t);
         let still_loud = level > self.cfg.min_level_dbfs
             && above >= self.cfg.start_db - self.cfg.hysteresis_db
-            && talk.is_none_or(|t| level >= t - self.cfg.hysteresis_db);
+            && threshold.is_none_or(|t| level >= t - self.cfg.hysteresis_db);
 
         // Over talk, the pre-roll and the tail are talk too: the utterance keeps little of them.
-        let preroll_s = match talk {
-            Some(_) => self.cfg.talk_margin_s,
-            None => self.cfg.preroll_s,
+        let preroll_s = if talk {
+            self.cfg.talk_margin_s
+        } else {
+            self.cfg.preroll_s
         };
         let preroll = Self::frames(preroll_s).max(self.cfg.start_frames);
         match self.open.as_mut() {
             None => {
-                self.loud_run = if loud { self.loud_run + 1 } else { 0 };
-                self.hear_background(level);
+                if loud {
+                    self.loud_run += 1;
+                    self.run_levels.push(level);
+                } else {
+                    self.loud_run = 0;
+                    for l in std::mem::take(&mut self.run_levels) {
+                        self.hear_background(l);
+                    }
+                    self.hear_background(level);
+                }
                 self.history.push_back(f);
                 while self.history.len() > preroll {
                     self.history.pop_front();
@@ -446,8 +482,9 @@ impl Vad {
                         samples,
                         loud_frames: self.loud_run,
                         quiet_frames: 0,
-                        levels: Vec::new(),
-                        talk_threshold: talk,
+                        levels: std::mem::take(&mut self.run_levels),
+                        threshold,
+                        over_talk: talk,
                     });
                 }
                 None
@@ -602,6 +639,66 @@ mod tests {
         assert!((floor + 62.0).abs() < 3.0, "{floor}");
     }
 
+    /// A fan beside the robot: its power is low-frequency, so its 10 ms levels swing by several
+    /// dB where white noise's hardly move. A floor that followed the quietest frames sat under
+    /// most of them, and in a continuous stream every utterance ran to `max_utterance_s`. The
+    /// fan alone (at -45 dBFS, five fans of their own cut-off and blade tone) is no speech, and
+    /// bursts 10 dB over it are cut with their times.
+    #[test]
+    fn a_fan_is_the_floor_and_speech_over_it_ends_when_it_ends() {
+        use audio::signal::{NoiseKind, active_power};
+        let p_fan = 10f64.powf(-4.5);
+        for seed in 0..5u64 {
+            let n = 40 * 16_000;
+            let fan = noise(n, NoiseKind::Fan, p_fan, &mut NoiseRng::new(100 + seed));
+            let b = burst(0.8, 6000.0);
+            let g = (10.0 * p_fan / active_power(&b)).sqrt();
+            // Bursts at 10, 14, ..., 38 s: the first 10 s are the fan alone.
+            let starts: Vec<usize> = (0..8).map(|k| (10 + 4 * k) * 16_000).collect();
+            let mut stream: Vec<i16> = fan
+                .iter()
+                .map(|x| x.round().clamp(-32768.0, 32767.0) as i16)
+                .collect();
+            for &at in &starts {
+                for (i, &x) in b.iter().enumerate() {
+                    let y = f64::from(stream[at + i]) + f64::from(x) * g;
+                    stream[at + i] = y.round().clamp(-32768.0, 32767.0) as i16;
+                }
+            }
+            let mut vad = Vad::new(VadConfig::default());
+            let mut segs = vec![];
+            for c in stream.chunks(320) {
+                segs.extend(vad.push(c));
+            }
+            segs.extend(vad.flush());
+            let times: Vec<(f64, f64, bool)> = segs
+                .iter()
+                .map(|s| (s.start_s(), s.end_s(), s.forced))
+                .collect();
+            assert!(
+                segs.iter().all(|s| !s.forced),
+                "fan {seed}: utterances ran to the limit: {times:?} (floor {:?})",
+                vad.floor_dbfs()
+            );
+            assert_eq!(segs.len(), starts.len(), "fan {seed}: {times:?}");
+            assert!(
+                segs.iter().all(|s| !s.over_talk),
+                "fan {seed}: taken for talk"
+            );
+            for (s, &at) in segs.iter().zip(&starts) {
+                let t = at as f64 / 16_000.0;
+                assert!(
+                    s.start_s() > t - 0.4 && s.start_s() < t + 0.1,
+                    "fan {seed}: {times:?}"
+                );
+                assert!(
+                    s.end_s() > t + 0.8 && s.end_s() < t + 1.3,
+                    "fan {seed}: {times:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn clicks_are_dropped_long_speech_is_cut_and_silence_is_nothing() {
         let mut vad = Vad::new(VadConfig::default());
@@ -718,6 +815,7 @@ mod tests {
         );
         let c = later[0];
         assert!(!c.forced);
+        assert!(c.over_talk, "the command is not marked as said over talk");
         assert!(
             c.start_s() > command_start - 0.4 && c.start_s() < command_start + 0.15,
             "starts at {:.2} s, the command at {command_start:.2} s",
@@ -731,7 +829,7 @@ mod tests {
         // The floor alone takes the talk for speech: utterance after utterance cut at
         // `max_utterance_s`, and the command is no utterance of its own.
         let (segs, _) = cut(VadConfig {
-            background_spread_db: f64::INFINITY,
+            background_margin_db: f64::NEG_INFINITY,
             ..VadConfig::default()
         });
         let times: Vec<(f64, f64, bool)> = segs

@@ -485,9 +485,16 @@ mod tests {
 /// far under speech) is subtracted once it is large enough to matter (at least
 /// [`DcRemover::MIN_OFFSET`], -54 dBFS). A stream with no offset passes unchanged, sample for
 /// sample, so its digital silence stays exact zeros.
+///
+/// The mean starts from the stream's first 10 ms of sound when the offset dominates them (its
+/// size at least their spread around it): an offset there from the start is removed at once,
+/// rather than as a sound that decays over a second (which an end-pointer would take for the
+/// room's noise, or for speech).
 #[derive(Debug, Clone, Default)]
 pub struct DcRemover {
     mean: f64,
+    /// Whether the first 10 ms of sound were looked at.
+    seeded: bool,
 }
 
 impl DcRemover {
@@ -495,11 +502,26 @@ impl DcRemover {
     pub const TAU_SAMPLES: f64 = 4000.0;
     /// The smallest offset removed (in sample units).
     pub const MIN_OFFSET: f64 = 64.0;
+    /// The first samples of sound the mean may start from (10 ms at 16 kHz), and the fewest.
+    const SEED: usize = 160;
+    const MIN_SEED: usize = 32;
 
     /// `samples` without their offset, appended to `out` (cleared first).
     pub fn process(&mut self, samples: &[i16], out: &mut Vec<i16>) {
         out.clear();
         out.reserve(samples.len());
+        match self.seed(samples) {
+            // The digital silence before the first sound, then the sound from the seeded mean.
+            Some((first, mean)) => {
+                self.remove(&samples[..first], out);
+                self.mean = mean;
+                self.remove(&samples[first..], out);
+            }
+            None => self.remove(samples, out),
+        }
+    }
+
+    fn remove(&mut self, samples: &[i16], out: &mut Vec<i16>) {
         for &s in samples {
             self.mean += (f64::from(s) - self.mean) / Self::TAU_SAMPLES;
             out.push(if self.mean.abs() < Self::MIN_OFFSET {
@@ -508,6 +530,31 @@ impl DcRemover {
                 (f64::from(s) - self.mean).round().clamp(-32768.0, 32767.0) as i16
             });
         }
+    }
+
+    /// Where the stream's first 10 ms of sound start in `samples` (digital silence before them
+    /// skipped) and the mean to start from there, if the offset dominates them; nothing if the
+    /// mean was started already, or is not to be (and again at the next chunk if this one holds
+    /// too little sound to tell).
+    fn seed(&mut self, samples: &[i16]) -> Option<(usize, f64)> {
+        if self.seeded {
+            return None;
+        }
+        let first = samples.iter().position(|&s| s != 0)?;
+        let w = &samples[first..samples.len().min(first + Self::SEED)];
+        if w.len() < Self::MIN_SEED {
+            return None;
+        }
+        self.seeded = true;
+        let n = w.len() as f64;
+        let mean = w.iter().map(|&s| f64::from(s)).sum::<f64>() / n;
+        let spread = (w
+            .iter()
+            .map(|&s| (f64::from(s) - mean).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        (mean.abs() >= Self::MIN_OFFSET && mean.abs() >= spread).then_some((first, mean))
     }
 
     /// The offset it currently removes (sample units; 0 below [`DcRemover::MIN_OFFSET`]).
@@ -550,6 +597,29 @@ mod dc_tests {
         let peak = tail.iter().map(|&s| s.abs()).max().unwrap_or(0);
         assert!((2800..=3300).contains(&peak), "peak {peak}");
         assert!((dc.offset() - 4000.0).abs() < 100.0, "{}", dc.offset());
+    }
+
+    /// A microphone whose offset (+3000) is there from its first sample, under quiet noise and
+    /// after a stretch of digital silence: the offset is gone from the first 10 ms of sound on,
+    /// not decaying over a second.
+    #[test]
+    fn an_offset_there_from_the_start_is_removed_at_once() {
+        let mut rng = NoiseRng::new(7);
+        let mut stream = vec![0i16; 800];
+        stream.extend((0..16_000).map(|_| (3000.0 + 30.0 * rng.gaussian()).round() as i16));
+        let mut dc = DcRemover::default();
+        let mut out = Vec::new();
+        let mut all = Vec::new();
+        // 20 ms chunks, as a sound server's.
+        for c in stream.chunks(320) {
+            dc.process(c, &mut out);
+            all.extend_from_slice(&out);
+        }
+        assert!(all[..800].iter().all(|&s| s == 0), "digital silence kept");
+        for (k, w) in all[800..].chunks(160).enumerate() {
+            let mean = w.iter().map(|&s| f64::from(s)).sum::<f64>() / w.len() as f64;
+            assert!(mean.abs() < 10.0, "10 ms frame {k}: mean {mean}");
+        }
     }
 }
 
