@@ -16,7 +16,9 @@
 //! out-of-grammar sentences of the tuning set and, over babble, stretches of talk alone: how
 //! many are taken for a command), `ORACLE=PAD` (no end-pointer: each clip is decoded as one
 //! utterance cut where the clean speech starts and ends, `PAD` seconds wider on each side;
-//! tells the end-pointer's share of the errors from the decoder's).
+//! tells the end-pointer's share of the errors from the decoder's), `NBEST=N` (read the command
+//! search's N best sentences; `VERBOSE=all` then shows `m`, how much better per frame the best
+//! scored than the best sentence of another command).
 use audio::synth::synthesize_16k;
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
@@ -38,6 +40,22 @@ const TUNE_OOG: &[&str] = &[
     "tell me a story about the old castle",
     "my phone battery is almost empty",
 ];
+
+/// With `NBEST` set: how much better per frame (nats) the command search's best sentence scored
+/// than its best sentence of another command (NaN without one).
+fn margin(game: Game, r: &speech_recognition::Recognized) -> f64 {
+    let frames = ((r.end_s - r.start_s) * 100.0).max(1.0);
+    let cmd = Command::from_phrase(game, &r.text);
+    match (
+        r.nbest.first(),
+        r.nbest
+            .iter()
+            .find(|(t, _)| Command::from_phrase(game, t) != cmd),
+    ) {
+        (Some((_, best)), Some((_, other))) => (best - other) / frames,
+        _ => f64::NAN,
+    }
+}
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -94,6 +112,9 @@ fn main() {
         .and_then(|s| s.parse().ok())
     {
         cfg.confidence.talk_acoustic_scale = a;
+    }
+    if let Some(k) = std::env::var("NBEST").ok().and_then(|s| s.parse().ok()) {
+        cfg.nbest = k;
     }
     if let Some(f) = std::env::var("OVERSUB").ok().and_then(|s| s.parse().ok()) {
         cfg.denoise
@@ -192,11 +213,13 @@ fn main() {
                             "  {kind:6} {v} {s} {ph:?} said {begin:.2}-{end:.2}s -> {:?}",
                             got.iter()
                                 .map(|r| format!(
-                                    "{:?} p={:.2} llr={:.3} snr={:.1} {:.2}-{:.2}s",
+                                    "{:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} m={:.3} {:.2}-{:.2}s",
                                     r.text,
                                     r.p_in_grammar,
+                                    r.confidence,
                                     r.llr_per_frame,
                                     r.snr_db,
+                                    margin(game, r),
                                     r.start_s - clip_s,
                                     r.end_s - clip_s
                                 ))
