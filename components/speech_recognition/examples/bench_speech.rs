@@ -30,8 +30,10 @@
 //! person.
 //!
 //! With `--write-wav DIR` every test command is also written as `<n>.wav`, with
-//! `<n> <game> <condition> <phrase>` lines in `DIR/truth.tsv`, for the `pocketsphinx_continuous`
-//! comparison of `scripts/bench.d/speech.sh`. The last line printed is a JSON summary.
+//! `<n> <game> <condition> <phrase>` lines in `DIR/truth.tsv`, and every phrase of the grammars
+//! as `<game> <phrase> <command>` lines in `DIR/phrases.tsv` (a synonym is the same command),
+//! for the `pocketsphinx_continuous` comparison of `scripts/bench.d/speech.sh`. The last line
+//! printed is a JSON summary.
 
 use audio::signal::{NoiseRng, babble};
 use audio::synth::synthesize_16k;
@@ -440,6 +442,15 @@ fn main() {
     );
     if let Some(d) = &wav_dir {
         std::fs::write(d.join("truth.tsv"), truth).unwrap();
+        let mut phrases = String::new();
+        for game in [Game::Touch, Game::Coach] {
+            for c in Command::of_game(game) {
+                for ph in c.phrases() {
+                    phrases.push_str(&format!("{}\t{ph}\t{c:?}\n", game.name()));
+                }
+            }
+        }
+        std::fs::write(d.join("phrases.tsv"), phrases).unwrap();
     }
     println!(
         "{{{}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}}}",

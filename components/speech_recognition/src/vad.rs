@@ -5,7 +5,8 @@
 //! to full scale (dBFS), smoothed over the last three frames. A background level (noise floor)
 //! follows the quietest recent frames: it falls at once to a quieter frame and rises by
 //! `floor_rise_db_per_s` otherwise (slower during speech). A frame is *loud* when its level is at
-//! least `start_db` above the floor and above `min_level_dbfs`.
+//! least `start_db` above the floor and above `min_level_dbfs` (and over the background's own
+//! swings, below).
 //!
 //! - An utterance **starts** after `start_frames` consecutive loud frames; it begins `preroll_s`
 //!   before the first of them (soft onsets are kept).
@@ -14,16 +15,15 @@
 //! - It is **cut** at `max_utterance_s` (marked `forced`), and dropped if the loud part lasted
 //!   less than `min_speech_s` (a click, a cough).
 //!
-//! **The background's swings.** The floor is the quietest frames', but a noise's 10 ms levels
-//! swing around its mean: white noise's by a dB, a fan's (its power is low-frequency) by 3 dB
-//! and more, so a floor under a fan sits so far below most of its frames that the fan itself is
-//! loud and an utterance never ends. The detector therefore also keeps the levels of the last
-//! `background_s` of frames heard outside utterances (not the loud ones that open one; but those
-//! of an utterance cut at
-//! `max_utterance_s` or dropped as too short: they were the background too), and a frame is
-//! loud only if it is also `background_margin_db` over the background's 90th percentile (with
-//! the same hysteresis while an utterance is open). Over white noise the floor decides; over a
-//! fan this does.
+//! **The background's swings.** The floor follows the quietest frames, but a noise's 10 ms
+//! levels swing around its mean: white noise's by a dB or two, a fan's (its power is
+//! low-frequency) by 5 dB and more, so under a fan the floor sits so far below most frames that
+//! the fan itself is loud and an utterance never ends. The detector therefore also keeps the
+//! levels of the last `background_s` of frames heard outside utterances (not the loud run that
+//! opens one, which is the utterance's; but those of an utterance cut at `max_utterance_s` or
+//! dropped as too short, which were the background too), and a frame is loud only if it is also
+//! `background_margin_db` over their 90th percentile (less `hysteresis_db` while an utterance is
+//! open). Over white noise the floor decides; over a fan, this threshold.
 //!
 //! **Background talk.** Other people talking in the room (babble) swings by 10 dB and more from
 //! one syllable to the next. When the background's spread (90th minus 20th percentile) is at
