@@ -45,10 +45,10 @@ need_camera_debs() {
 
 # The adapted acoustic model the speech recognizer prefers (components/speech_recognition,
 # `speech_model`): built into ~/.cache/robocog/speech/ when missing or when its recipe changed
-# (about 4 minutes on two cores), otherwise left alone. Needs build_all first.
+# (about 9 minutes on two cores), otherwise left alone. Needs build_all first.
 need_speech_model() {
   if ! "$BIN/speech_model" --check >/dev/null 2>&1; then
-    step "adapting the speech recognizer's acoustic model to noisy speech (speech_model, ~4 min)"
+    step "adapting the speech recognizer's acoustic model to noisy speech (speech_model, ~9 min)"
     "$BIN/speech_model"
   fi
 }

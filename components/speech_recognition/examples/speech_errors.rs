@@ -210,15 +210,17 @@ fn main() {
                             "reject"
                         };
                         lines.push(format!(
-                            "  {kind:6} {v} {s} {ph:?} said {begin:.2}-{end:.2}s -> {:?}",
+                            "  {kind:6} {v} {s} {ph:?} {c:?} said {begin:.2}-{end:.2}s -> {:?}",
                             got.iter()
                                 .map(|r| format!(
-                                    "{:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} m={:.3} {:.2}-{:.2}s",
+                                    "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} m={:.3} {:.2}-{:.2}s",
                                     r.text,
+                                    r.command,
                                     r.p_in_grammar,
                                     r.confidence,
                                     r.llr_per_frame,
                                     r.snr_db,
+                                    r.over_talk,
                                     margin(game, r),
                                     r.start_s - clip_s,
                                     r.end_s - clip_s
@@ -284,12 +286,13 @@ fn main() {
                     "  {what} -> {:?}",
                     got.iter()
                         .map(|r| format!(
-                            "{:?} {:?} p={:.2} conf={:.2} llr={:.3} talk={} {:.2}-{:.2}s",
+                            "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} {:.2}-{:.2}s",
                             r.text,
                             r.command,
                             r.p_in_grammar,
                             r.confidence,
                             r.llr_per_frame,
+                            r.snr_db,
                             r.over_talk,
                             r.start_s - clip_s,
                             r.end_s - clip_s

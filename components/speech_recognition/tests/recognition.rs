@@ -247,11 +247,13 @@ fn clean_answers_are_sure_and_noisy_commands_are_asked_about() {
                 n += 1;
                 for r in &got {
                     eprintln!(
-                        "{snr} dB {} {:?} -> {:?} {:.2}",
+                        "{snr} dB {} {:?} -> {:?} {:.2} (d {:.2}, estimated SNR {:.1} dB)",
                         v.voice,
                         c.phrase(),
                         r.text,
-                        r.confidence
+                        r.confidence,
+                        r.llr_per_frame,
+                        r.snr_db
                     );
                     if r.command != Command::None && (low..high).contains(&r.confidence) {
                         asked += 1;
@@ -373,13 +375,15 @@ fn an_offset_and_clipping_microphone_is_still_understood() {
 
 /// Decoding while the person speaks (audio in 20 ms chunks, as from the bus) gives the same
 /// commands as decoding each utterance once it was cut, and the searches keep up: after the
-/// end-pointer's cut only the end of the search remains.
+/// end-pointer's cut only the end of the search remains, a fraction of what decoding the whole
+/// utterance at the cut takes. (Measured against each other in the same run, so that a busy
+/// machine, which slows both, does not decide; the figures themselves are the benchmark's.)
 #[test]
 fn live_decoding_matches_whole_utterances_and_ends_fast() {
     let mut live = recognizer(Game::Coach);
     let mut whole = recognizer(Game::Coach);
     let v = voice("en-gb", 160, 45);
-    let (mut same, mut n, mut after_cut) = (0, 0, vec![]);
+    let (mut same, mut n, mut after_cut, mut at_cut) = (0, 0, vec![], vec![]);
     for (i, c) in Command::of_game(Game::Coach).enumerate() {
         let audio = spoken(c.phrase(), &v, 20.0, 40 + i as u64);
         let mut a = whole.push(&audio).unwrap();
@@ -395,6 +399,7 @@ fn live_decoding_matches_whole_utterances_and_ends_fast() {
             // The first utterance is decoded whole (it warms the cepstral mean up).
             if i > 0 {
                 after_cut.push(b[0].decode_s);
+                at_cut.push(a[0].decode_s);
             }
         }
         eprintln!(
@@ -405,11 +410,17 @@ fn live_decoding_matches_whole_utterances_and_ends_fast() {
         );
     }
     assert!(same * 10 >= n * 9, "only {same} of {n} the same");
-    after_cut.sort_by(f64::total_cmp);
-    let p50 = after_cut[after_cut.len() / 2];
-    // Whole-utterance decoding takes about 0.1 s after the cut on this hardware; what remains of
-    // a live search is a few frames and the end of the search. Loose for a loaded machine.
-    assert!(p50 < 0.08, "p50 {p50:.3} s after the cut: {after_cut:?}");
+    let p50 = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (live_s, whole_s) = (p50(&mut after_cut), p50(&mut at_cut));
+    // What remains of a live search is a few frames and the end of the search.
+    assert!(
+        live_s * 2.0 < whole_s,
+        "after the cut, live decoding took p50 {live_s:.3} s and whole-utterance decoding \
+         {whole_s:.3} s: {after_cut:?} against {at_cut:?}"
+    );
 }
 
 /// Three other people talking in the room, and the player saying every command of both games

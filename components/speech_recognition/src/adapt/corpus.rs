@@ -76,8 +76,30 @@ pub(super) fn synthesize_corpus(
         texts.extend(std::iter::repeat_n(*p, COMMAND_REPEATS));
     }
     texts.extend(&sentences);
-    let total = VOICES.len() * texts.len();
+    let total = VOICES.len() * (texts.len() + phrases.len() * ROOM_REPEATS);
     let mut rng = NoiseRng::new(SEED);
+    let mut room_rng = NoiseRng::new(ROOM_SEED);
+    let talkers = BABBLE_VOICES
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let voice = Voice {
+                voice: (*v).into(),
+                speed_wpm: 150 + 20 * i as u32,
+                pitch: 35 + 8 * i as u8,
+            };
+            talker(&voice, &sentences, i)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    // The background of each babble voice's commands: the other three.
+    let backgrounds: Vec<Vec<Vec<i16>>> = (0..talkers.len())
+        .map(|skip| {
+            (0..talkers.len())
+                .filter(|&i| i != skip)
+                .map(|i| talkers[i].clone())
+                .collect()
+        })
+        .collect();
     for v in VOICES {
         for t in &texts {
             let voice = Voice {
@@ -94,8 +116,60 @@ pub(super) fn synthesize_corpus(
                 progress(Progress::Corpus { done: w.n, total });
             }
         }
+        for p in &phrases {
+            for _ in 0..ROOM_REPEATS {
+                let voice = Voice {
+                    voice: v.into(),
+                    speed_wpm: 120 + (room_rng.uniform() * 110.0) as u32,
+                    pitch: 30 + (room_rng.uniform() * 30.0) as u8,
+                };
+                let speech = synthesize_16k(p, &voice)?;
+                let room = ROOMS[(room_rng.uniform() * ROOMS.len() as f64) as usize % ROOMS.len()];
+                let audio = in_room(&speech, room, v, &backgrounds, &mut room_rng);
+                w.add(
+                    &normalize_words(p),
+                    audio,
+                    &format!("{v} ({room:?}): {p:?}"),
+                )?;
+                if w.n.is_multiple_of(200) || w.n == total {
+                    progress(Progress::Corpus { done: w.n, total });
+                }
+            }
+        }
     }
     Ok(())
+}
+
+/// `speech` said by `voice` in `room`, with 0.3 s of the room before and after it (the
+/// reverberant tail rings into the 0.3 s after). Over babble the background talkers are
+/// `backgrounds[i]`, [`BABBLE_VOICES`] but the `i`-th: but `voice`, or but one drawn at random.
+fn in_room(
+    speech: &[i16],
+    room: Room,
+    voice: &str,
+    backgrounds: &[Vec<Vec<i16>>],
+    rng: &mut NoiseRng,
+) -> Vec<i16> {
+    const AROUND_S: f64 = 0.3;
+    match room {
+        Room::Reverb => {
+            let (lo, hi) = ROOM_RT60_S;
+            let wet = reverberate(speech, lo + (hi - lo) * rng.uniform(), rng);
+            let mut out = mix_at_snr(&wet, f64::INFINITY, NoiseKind::White, AROUND_S, 0.0, rng);
+            out.resize(speech.len() + (2.0 * AROUND_S * 16_000.0) as usize, 0);
+            out
+        }
+        Room::Fan(snr) => mix_at_snr(speech, snr, NoiseKind::Fan, AROUND_S, AROUND_S, rng),
+        Room::Babble(snr) => {
+            let skip = BABBLE_VOICES
+                .iter()
+                .position(|&b| b == voice)
+                .unwrap_or((rng.uniform() * backgrounds.len() as f64) as usize % backgrounds.len());
+            let n = speech.len() + (2.0 * AROUND_S * 16_000.0) as usize;
+            let b = babble(&backgrounds[skip], n, 1e-2, rng);
+            mix_with_noise(speech, snr, &b, AROUND_S, AROUND_S)
+        }
+    }
 }
 
 pub(super) fn recordings_corpus(

@@ -13,7 +13,8 @@
 //! 2. a corpus is written as 16 kHz WAV files with their transcriptions: either synthesized
 //!    ([`Corpus::Synthesized`]: every phrase of both games and a set of ordinary sentences, by
 //!    espeak-ng voices that the evaluation never uses, at random speeds and pitches, clean or
-//!    mixed with white or brown noise at 20 to 5 dB), or recordings ([`Corpus::Recordings`]:
+//!    mixed with white or brown noise at 20 to 5 dB, and each command again in real rooms
+//!    ([`ROOMS`]: reverberation, other people talking, a fan), or recordings ([`Corpus::Recordings`]:
 //!    `NAME.wav` with the words in `NAME.txt`, e.g. the robot's users through its microphone);
 //! 3. `sphinx_fe` computes the features with the model's `feat.params`;
 //! 4. `bw` collects the Baum-Welch statistics along each transcription (utterances it cannot
@@ -31,8 +32,10 @@
 
 use crate::garbage::Dictionary;
 use crate::model::{MODEL_FILES, PROVENANCE_FILE, check_model_dir};
-use audio::signal::{NoiseKind, NoiseRng, mix_at_snr, resample};
-use audio::synth::{Voice, synthesize_16k};
+use audio::signal::{
+    NoiseKind, NoiseRng, babble, mix_at_snr, mix_with_noise, resample, reverberate,
+};
+use audio::synth::{Voice, synthesize_16k, talker};
 use interfaces::msg::command::{Command, Game};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -91,6 +94,43 @@ pub const CONDITIONS: [(f64, NoiseKind); 7] = [
 /// Seed of the synthesized corpus' speeds, pitches, conditions and noise: the corpus is the
 /// same on every machine with the same espeak-ng.
 const SEED: u64 = 424_242;
+
+/// How many more times each voice says each command phrase in a real room ([`ROOMS`]), after
+/// the [`COMMAND_REPEATS`] in steady noise.
+pub const ROOM_REPEATS: usize = 2;
+
+/// What a real room adds to a command of the synthesized corpus (see [`ROOMS`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Room {
+    /// Reverberation, no noise: the RT60 drawn uniformly in [`ROOM_RT60_S`].
+    Reverb,
+    /// Three other voices of the corpus ([`BABBLE_VOICES`]) saying [`SENTENCES`] at this SNR
+    /// (dB).
+    Babble(f64),
+    /// A fan's noise at this SNR (dB).
+    Fan(f64),
+}
+
+/// The rooms, drawn uniformly for each of the [`ROOM_REPEATS`].
+pub const ROOMS: [Room; 6] = [
+    Room::Reverb,
+    Room::Reverb,
+    Room::Babble(5.0),
+    Room::Babble(10.0),
+    Room::Babble(15.0),
+    Room::Fan(10.0),
+];
+
+/// The reverberation times of [`Room::Reverb`] (s): a uniform draw between the two.
+pub const ROOM_RT60_S: (f64, f64) = (0.3, 0.8);
+
+/// The voices of the corpus ([`VOICES`]) talking in the background of [`Room::Babble`]: three
+/// at a time, all but the one saying the command, or all but one drawn at random.
+pub const BABBLE_VOICES: [&str; 4] = ["en-us+m4", "en-us+f1", "en-gb+m5", "en-gb-scotland+f2"];
+
+/// Seed of the rooms' draws, apart from [`SEED`], so the utterances in steady noise stay the
+/// same whatever the rooms are.
+const ROOM_SEED: u64 = 737_373;
 
 /// Where SphinxTrain's programs are on Debian.
 const SPHINXTRAIN_LIB: &str = "/usr/lib/sphinxtrain";
@@ -226,6 +266,12 @@ impl Recipe {
             h.add(format!("{snr}{kind:?}").as_bytes());
         }
         h.add(&SEED.to_le_bytes());
+        h.add(&ROOM_REPEATS.to_le_bytes());
+        for room in ROOMS {
+            h.add(format!("{room:?}").as_bytes());
+        }
+        h.add(format!("{ROOM_RT60_S:?}{BABBLE_VOICES:?}").as_bytes());
+        h.add(&ROOM_SEED.to_le_bytes());
         h.add(&PASSES.to_le_bytes());
         let mut files: Vec<PathBuf> = MODEL_FILES
             .iter()
@@ -544,7 +590,7 @@ pub fn build(
     }
     let summary = match &recipe.corpus {
         Corpus::Synthesized => format!(
-            "MAP-adapted stock en-us on {} synthesized utterances ({} espeak-ng voices, clean to 5 dB SNR), {} not aligned",
+            "MAP-adapted stock en-us on {} synthesized utterances ({} espeak-ng voices, clean to 5 dB SNR, reverberant rooms, other people talking, a fan), {} not aligned",
             w.n,
             VOICES.len(),
             not_aligned
@@ -666,5 +712,11 @@ mod tests {
         sorted.sort_unstable();
         sorted.dedup();
         assert_eq!(sorted.len(), v.len(), "a voice twice");
+        for b in BABBLE_VOICES {
+            assert!(
+                VOICES.contains(&b),
+                "{b} talks in the background but is no corpus voice"
+            );
+        }
     }
 }

@@ -9,11 +9,12 @@ use std::process::ExitCode;
 
 /// Adapt PocketSphinx's stock US English acoustic model (MAP, with SphinxTrain) to noisy speech,
 /// so commands survive a noisy room: by default on a corpus synthesized with espeak-ng (every
-/// command of both games and ordinary sentences, 14 voices, clean to 5 dB SNR), or on your own
+/// command of both games and ordinary sentences, 14 voices, clean to 5 dB SNR, and the commands
+/// again in reverberant rooms, over other people talking and beside a fan), or on your own
 /// recordings (`--recordings`). The result goes where `speech_recognition` looks for it first.
 ///
 /// Needs the Debian packages sphinxtrain, sphinxbase-utils, pocketsphinx-en-us and espeak-ng.
-/// A build takes about 4 minutes on two cores; it is skipped when the model there was built from
+/// A build takes about 9 minutes on two cores; it is skipped when the model there was built from
 /// the same recipe.
 #[derive(Debug, Parser)]
 #[command(name = "speech_model")]
