@@ -669,10 +669,12 @@ async fn replayed_frames_drive_a_fresh_tracker_to_the_recorded_tracks() {
 [[component]]
 name = "ball_tracker"
 binary = "ball_tracker"
-args = ["--target-hue", "3.2", "--target-saturation", "0.86", "--target-diameter", "0.1", "--no-dr"]
+args = ["--target-hue", "3.2", "--target-saturation", "0.86", "--target-diameter", "0.1", "--no-dr", "--every-frame"]
 external_inputs = ["vision/ball_target", "vision/rgbd"]
 "#,
     );
+    // `--every-frame`: the replayed tracker tracks every frame even on a busy machine (by
+    // default a tracker behind jumps to the newest frame and counts the others).
     let graph = Launch::start(&m, &ns2, &[]);
     graph
         .lines
@@ -688,7 +690,7 @@ external_inputs = ["vision/ball_target", "vision/rgbd"]
     );
     eventually(
         "the tracks of the replayed frames",
-        Duration::from_secs(10),
+        Duration::from_secs(30),
         || {
             let n = t
                 .got
@@ -697,7 +699,7 @@ external_inputs = ["vision/ball_target", "vision/rgbd"]
                 .iter()
                 .filter(|g| g.1 == "vision/ball")
                 .count();
-            (n + 2 >= frames).then_some(())
+            (n >= frames).then_some(())
         },
     );
     let replayed: Vec<serde_json::Value> = t
@@ -708,8 +710,19 @@ external_inputs = ["vision/ball_target", "vision/rgbd"]
         .filter(|g| g.1 == "vision/ball")
         .map(|g| decode(&g.3))
         .collect();
+    assert_eq!(replayed.len(), frames, "one track per replayed frame");
     // Match by the source frame's stamp (the track carries it); after the first frames (the
-    // live tracker had a history, the fresh one starts cold) the tracks agree.
+    // live tracker had a history, the fresh one starts cold) the tracks agree. The live tracker
+    // may have skipped frames when the machine was busy (it counts them): the frames both
+    // trackers tracked are compared.
+    let replayed_stamps: std::collections::BTreeSet<i64> = replayed
+        .iter()
+        .map(|v| v["header"]["stamp_ns"].as_i64().unwrap())
+        .collect();
+    let both = recorded
+        .keys()
+        .filter(|s| replayed_stamps.contains(s))
+        .count();
     let mut compared = 0;
     let mut worst_m = 0.0f64;
     for v in replayed.iter().skip(10) {
@@ -732,13 +745,13 @@ external_inputs = ["vision/ball_target", "vision/rgbd"]
         compared += 1;
     }
     eprintln!(
-        "tracker on replayed frames: {} tracks, {compared} compared with the live run, worst centre difference {:.4} mm",
+        "tracker on replayed frames: {} tracks, the live tracker tracked {both} of the {frames} recorded frames, {compared} compared, worst centre difference {:.4} mm",
         replayed.len(),
         worst_m * 1e3
     );
     assert!(
-        compared + 15 >= frames,
-        "{compared} of {frames} tracks compared"
+        compared + 10 >= both && compared * 2 >= frames,
+        "{compared} tracks compared, of {both} frames both trackers tracked ({frames} recorded)"
     );
     assert!(worst_m < 0.005, "centres differ by up to {worst_m} m");
     let _ = std::fs::remove_file(&file);
