@@ -17,8 +17,8 @@
 //! many are taken for a command), `ORACLE=PAD` (no end-pointer: each clip is decoded as one
 //! utterance cut where the clean speech starts and ends, `PAD` seconds wider on each side;
 //! tells the end-pointer's share of the errors from the decoder's), `NBEST=N` (read the command
-//! search's N best sentences; `VERBOSE=all` then shows `m`, how much better per frame the best
-//! scored than the best sentence of another command).
+//! search's N best sentences; `VERBOSE=all` then lists them and shows `m`, how much better per
+//! frame the hypothesis scored than the best whole sentence of another command).
 use audio::synth::synthesize_16k;
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
@@ -41,20 +41,34 @@ const TUNE_OOG: &[&str] = &[
     "my phone battery is almost empty",
 ];
 
-/// With `NBEST` set: how much better per frame (nats) the command search's best sentence scored
-/// than its best sentence of another command (NaN without one).
+/// With `NBEST` set: the N best sentences and their path scores (nats), for `VERBOSE=all`.
+fn nbest_list(r: &speech_recognition::Recognized) -> String {
+    if r.nbest.is_empty() {
+        return String::new();
+    }
+    let l: Vec<String> = r.nbest.iter().map(|(t, s)| format!("{t}:{s:.1}")).collect();
+    format!(" nb={}", l.join("|"))
+}
+
+/// With `NBEST` set: how much better per frame (nats) the hypothesis scored in the N-best list
+/// than the best whole sentence of another command there (`inf` without one, NaN when the
+/// hypothesis itself is not in the list). Only whole sentences count: the lattice of a grammar
+/// search also yields paths that stop inside a sentence ("look", "pass the"), which often score
+/// better than any whole one and above the hypothesis itself.
 fn margin(game: Game, r: &speech_recognition::Recognized) -> f64 {
     let frames = ((r.end_s - r.start_s) * 100.0).max(1.0);
     let cmd = Command::from_phrase(game, &r.text);
-    match (
-        r.nbest.first(),
-        r.nbest
-            .iter()
-            .find(|(t, _)| Command::from_phrase(game, t) != cmd),
-    ) {
-        (Some((_, best)), Some((_, other))) => (best - other) / frames,
-        _ => f64::NAN,
-    }
+    let Some((_, own)) = r.nbest.iter().find(|(t, _)| *t == r.text) else {
+        return f64::NAN;
+    };
+    r.nbest
+        .iter()
+        .filter(|(t, _)| {
+            let c = Command::from_phrase(game, t);
+            c != Command::None && c != cmd
+        })
+        .map(|(_, s)| (own - s) / frames)
+        .fold(f64::INFINITY, f64::min)
 }
 
 fn main() {
@@ -213,7 +227,7 @@ fn main() {
                             "  {kind:6} {v} {s} {ph:?} {c:?} said {begin:.2}-{end:.2}s -> {:?}",
                             got.iter()
                                 .map(|r| format!(
-                                    "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} m={:.3} {:.2}-{:.2}s",
+                                    "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} m={:.3} {:.2}-{:.2}s{}",
                                     r.text,
                                     r.command,
                                     r.p_in_grammar,
@@ -223,7 +237,8 @@ fn main() {
                                     r.over_talk,
                                     margin(game, r),
                                     r.start_s - clip_s,
-                                    r.end_s - clip_s
+                                    r.end_s - clip_s,
+                                    nbest_list(r)
                                 ))
                                 .collect::<Vec<_>>()
                         ));

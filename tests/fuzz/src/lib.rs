@@ -157,12 +157,15 @@ pub fn gamecontroller(data: &[u8]) {
     }
 }
 
-/// Write `data` to a file of this process and thread (the readers under test take paths).
+/// Write `data` to a file of this process and call in the system's temporary folder (the readers
+/// under test take paths); the caller removes it.
 fn scratch_file(ext: &str, data: &[u8]) -> Option<PathBuf> {
     static N: AtomicU64 = AtomicU64::new(0);
-    let dir = std::env::temp_dir().join(format!("robocog-fuzz-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).ok()?;
-    let path = dir.join(format!("{}.{ext}", N.fetch_add(1, Ordering::Relaxed)));
+    let path = std::env::temp_dir().join(format!(
+        "robocog-fuzz-{}-{}.{ext}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
     let mut f = std::fs::File::create(&path).ok()?;
     f.write_all(data).ok()?;
     Some(path)
