@@ -11,6 +11,7 @@
 //! | publisher | `robocog/<ns>/_live/p/<component>/<type>/<topic>` |
 //! | subscriber | `robocog/<ns>/_live/s/<component>/<type>/<topic>` |
 //! | service | `robocog/<ns>/_live/q/<component>/<request type>/<reply type>/<service>` |
+//! | the graph is stopping | `robocog/<ns>/_live/stopping/<launcher's zenoh id>` |
 //!
 //! Topic names may hold `/`, so they come last; the other fields never do.
 
@@ -38,6 +39,11 @@ pub fn subscriber_key(ns: &str, component: &str, type_name: &str, topic: &str) -
 
 pub fn service_key(ns: &str, component: &str, req: &str, rep: &str, service: &str) -> String {
     format!("robocog/{ns}/_live/q/{component}/{req}/{rep}/{service}")
+}
+
+/// The token a launcher declares before it stops its graph's first component ([`Stopping`]).
+pub fn stopping_key(ns: &str, launcher: &str) -> String {
+    format!("robocog/{ns}/_live/stopping/{launcher}")
 }
 
 /// A parsed liveliness token.
@@ -222,6 +228,58 @@ impl Readers {
         if self.rx.changed().await.is_err() {
             std::future::pending::<()>().await;
         }
+    }
+}
+
+/// Whether a launcher is stopping the graph of the bus's namespace: it declares a
+/// [`stopping_key`] token before it stops the first component, so that the others do not take
+/// their neighbours' leaving for a failure (a dialog would tell the person it cannot hear her
+/// while the game shuts down). The token reaches every component before any component's own
+/// token vanishes: both travel the same router, in order.
+pub struct Stopping {
+    rx: tokio::sync::watch::Receiver<bool>,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+}
+
+impl std::fmt::Debug for Stopping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Stopping({})", self.now())
+    }
+}
+
+impl Stopping {
+    /// Watch for a launcher stopping the graph of `bus`'s namespace.
+    pub async fn watch(bus: &crate::Bus) -> Result<Stopping, crate::bus::BusError> {
+        let (tx, rx) = tokio::sync::watch::channel(false);
+        let keys: std::sync::Mutex<std::collections::BTreeSet<String>> = Default::default();
+        let subscriber = bus
+            .session()
+            .liveliness()
+            .declare_subscriber(format!("robocog/{}/_live/stopping/**", bus.namespace()))
+            .history(true)
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str().to_string();
+                let mut keys = keys.lock().unwrap_or_else(|p| p.into_inner());
+                match sample.kind() {
+                    zenoh::sample::SampleKind::Put => keys.insert(key),
+                    zenoh::sample::SampleKind::Delete => keys.remove(&key),
+                };
+                tx.send_replace(!keys.is_empty());
+            })
+            .await
+            .map_err(|e| crate::bus::BusError::Zenoh {
+                what: "watching for the graph stopping".into(),
+                reason: e.to_string(),
+            })?;
+        Ok(Stopping {
+            rx,
+            _subscriber: subscriber,
+        })
+    }
+
+    /// Whether a launcher is stopping the graph now.
+    pub fn now(&self) -> bool {
+        *self.rx.borrow()
     }
 }
 

@@ -787,7 +787,22 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         }
     }
 
+    // Said on the bus first, so that no component takes its neighbours' leaving for a failure
+    // (the dialog would tell the person it cannot hear her).
+    let stopping = router
+        .liveliness()
+        .declare_token(liveliness::stopping_key(
+            &opts.namespace,
+            &router.zid().to_string(),
+        ))
+        .await;
+    if let Err(e) = &stopping {
+        say(format!(
+            "cannot tell the graph it is stopping ({e}): its components may report each other gone"
+        ));
+    }
     stop_all(&manifest, &mut children, machines.as_ref()).await;
+    drop(stopping);
     drop(machines);
     drop(router);
     let code = exit_code.unwrap_or(0);

@@ -45,6 +45,8 @@ name = "speech_recognition"
 binary = "{}"
 args = ["--game", "touch"]
 external_inputs = ["audio/in"]
+# As in the games' manifests: it starts once the dialog reads its utterances, and stops first.
+depends_on = ["dialogs"]
 
 [[component]]
 name = "dialogs"
@@ -617,6 +619,47 @@ async fn lost_and_back(
         d.component == "audio_io" && d.get("capture_chunks") >= at_loss + 50
     })
     .await;
+}
+
+/// The launcher stops the recognizer before the dialog (it depends on the dialog, as in the
+/// games' manifests); the dialog sees it go, and says nothing: the graph is stopping, nothing
+/// failed. (Without the launcher's word that the graph stops, the robot told the person it
+/// could not hear her as every game ended.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_graph_that_stops_does_not_tell_the_person_it_cannot_hear() {
+    let ns = unique_namespace("voicestop");
+    let dir = scratch(&ns);
+    let m = dir.join("voice.toml");
+    std::fs::write(&m, manifest()).unwrap();
+    let mut launch = Launch::start(&m, &ns, &[]);
+    for who in ["dialogs", "speech_generator", "speech_recognition"] {
+        launch.lines.wait_for(who, Duration::from_secs(30), |l| {
+            l.contains(&format!("{who} is up"))
+        });
+    }
+    let bus = Bus::open(&launch.connect_args(), "test-voice")
+        .await
+        .unwrap();
+    let said = bus.subscriber(&topics::SPEECH_SAY).await.unwrap();
+    // The dialog has seen the recognizer (it never speaks of one it never saw).
+    tokio::time::sleep(Duration::from_secs(1)).await;
+
+    launch.sigterm();
+    let status = launch.wait_exit(Duration::from_secs(40));
+    assert!(
+        status.success(),
+        "{status}:\n{}",
+        launch.lines.all().join("\n")
+    );
+    let mut lines = Vec::new();
+    while let Ok(Ok(r)) = tokio::time::timeout(Duration::from_millis(300), said.recv()).await {
+        lines.push(r.text);
+    }
+    assert!(
+        lines.is_empty(),
+        "the robot said {lines:?} as the graph stopped:\n{}",
+        launch.lines.all().join("\n")
+    );
 }
 
 /// The next thing the robot is asked to say, within `timeout`.

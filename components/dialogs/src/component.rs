@@ -207,6 +207,10 @@ pub async fn run(
     let mut ears = interfaces::liveliness::Readers::watch(&bus, &topics::AUDIO_IN).await?;
     let mut mics = interfaces::liveliness::Readers::watch_writers(&bus, &topics::AUDIO_IN).await?;
     let mut hearing = Hearing::default();
+    // While the launcher stops the graph, the recognizer and the microphone leaving is no news
+    // for the person (the launcher stops them before the dialog: they depend on it).
+    let stopping = interfaces::liveliness::Stopping::watch(&bus).await?;
+    let mut said_stopping = false;
     // Commands for the Executive while it restarts (see `interfaces::outbox`).
     let mut outbox: Outbox<GameCommand> = Outbox::new(bus.clock().clone(), hold.max);
     // Time is the component's clock (the system's, or a replay's with `--clock bus`): the
@@ -251,7 +255,14 @@ pub async fn run(
         let mut lines: Vec<&'static str> = Vec::new();
         let recognizer = ears.any_of(&hold.recognizers);
         let microphone = hold.microphones.is_empty() || mics.any_of(&hold.microphones);
-        if let Some(line) = hearing.update(recognizer && microphone) {
+        let heard = recognizer && microphone;
+        if !heard && stopping.now() {
+            if !std::mem::replace(&mut said_stopping, true) {
+                tracing::info!(
+                    "the graph is stopping: the recognizer or the microphone leaving is not said"
+                );
+            }
+        } else if let Some(line) = hearing.update(heard) {
             tracing::warn!(
                 "{}",
                 if line == CANNOT_HEAR && !recognizer {
