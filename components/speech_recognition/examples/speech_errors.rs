@@ -17,8 +17,9 @@
 //! many are taken for a command), `ORACLE=PAD` (no end-pointer: each clip is decoded as one
 //! utterance cut where the clean speech starts and ends, `PAD` seconds wider on each side;
 //! tells the end-pointer's share of the errors from the decoder's), `NBEST=N` (read the command
-//! search's N best sentences; `VERBOSE=all` then lists them and shows `m`, how much better per
-//! frame the hypothesis scored than the best whole sentence of another command).
+//! search's N best sentences, 10 by default, 0 for none and no margin in the confidence;
+//! `VERBOSE=all` lists them and shows `m`, how much better per frame the hypothesis scored than
+//! the best whole sentence of another command).
 use audio::synth::synthesize_16k;
 use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::DecoderConfig;
@@ -41,7 +42,7 @@ const TUNE_OOG: &[&str] = &[
     "my phone battery is almost empty",
 ];
 
-/// With `NBEST` set: the N best sentences and their path scores (nats), for `VERBOSE=all`.
+/// The N best sentences and their path scores (nats), for `VERBOSE=all`.
 fn nbest_list(r: &speech_recognition::Recognized) -> String {
     if r.nbest.is_empty() {
         return String::new();
@@ -50,25 +51,24 @@ fn nbest_list(r: &speech_recognition::Recognized) -> String {
     format!(" nb={}", l.join("|"))
 }
 
-/// With `NBEST` set: how much better per frame (nats) the hypothesis scored in the N-best list
-/// than the best whole sentence of another command there (`inf` without one, NaN when the
-/// hypothesis itself is not in the list). Only whole sentences count: the lattice of a grammar
-/// search also yields paths that stop inside a sentence ("look", "pass the"), which often score
-/// better than any whole one and above the hypothesis itself.
-fn margin(game: Game, r: &speech_recognition::Recognized) -> f64 {
-    let frames = ((r.end_s - r.start_s) * 100.0).max(1.0);
-    let cmd = Command::from_phrase(game, &r.text);
-    let Some((_, own)) = r.nbest.iter().find(|(t, _)| *t == r.text) else {
-        return f64::NAN;
-    };
-    r.nbest
-        .iter()
-        .filter(|(t, _)| {
-            let c = Command::from_phrase(game, t);
-            c != Command::None && c != cmd
-        })
-        .map(|(_, s)| (own - s) / frames)
-        .fold(f64::INFINITY, f64::min)
+/// One utterance for `VERBOSE` (times from `clip_s`): its words, command, scores, `m`, the N-best
+/// margin ([`speech_recognition::confidence::nbest_margin`]), and
+/// the N-best list.
+fn utterance(r: &speech_recognition::Recognized, clip_s: f64) -> String {
+    format!(
+        "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} m={:.3} {:.2}-{:.2}s{}",
+        r.text,
+        r.command,
+        r.p_in_grammar,
+        r.confidence,
+        r.llr_per_frame,
+        r.snr_db,
+        r.over_talk,
+        r.margin_per_frame.unwrap_or(f64::NAN),
+        r.start_s - clip_s,
+        r.end_s - clip_s,
+        nbest_list(r)
+    )
 }
 
 fn main() {
@@ -225,22 +225,7 @@ fn main() {
                         };
                         lines.push(format!(
                             "  {kind:6} {v} {s} {ph:?} {c:?} said {begin:.2}-{end:.2}s -> {:?}",
-                            got.iter()
-                                .map(|r| format!(
-                                    "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} m={:.3} {:.2}-{:.2}s{}",
-                                    r.text,
-                                    r.command,
-                                    r.p_in_grammar,
-                                    r.confidence,
-                                    r.llr_per_frame,
-                                    r.snr_db,
-                                    r.over_talk,
-                                    margin(game, r),
-                                    r.start_s - clip_s,
-                                    r.end_s - clip_s,
-                                    nbest_list(r)
-                                ))
-                                .collect::<Vec<_>>()
+                            got.iter().map(|r| utterance(r, clip_s)).collect::<Vec<_>>()
                         ));
                     }
                 }
@@ -299,20 +284,7 @@ fn main() {
                 sure += usize::from(cmd.iter().any(|r| r.confidence >= 0.7));
                 lines.push(format!(
                     "  {what} -> {:?}",
-                    got.iter()
-                        .map(|r| format!(
-                            "{:?} {:?} p={:.2} conf={:.2} llr={:.3} snr={:.1} talk={} {:.2}-{:.2}s",
-                            r.text,
-                            r.command,
-                            r.p_in_grammar,
-                            r.confidence,
-                            r.llr_per_frame,
-                            r.snr_db,
-                            r.over_talk,
-                            r.start_s - clip_s,
-                            r.end_s - clip_s
-                        ))
-                        .collect::<Vec<_>>()
+                    got.iter().map(|r| utterance(r, clip_s)).collect::<Vec<_>>()
                 ));
             }
         }

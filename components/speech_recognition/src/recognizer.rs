@@ -18,6 +18,10 @@ use interfaces::msg::command::{Command, Game};
 use pocketsphinx_sys_min::decoder::{Decoder, DecoderConfig, DecoderError, Hypothesis};
 use std::path::{Path, PathBuf};
 
+/// How many distinct N-best sentences of the command search are read by default: on the
+/// tuning voices, enough to hold the best other command whenever the lattice has one.
+pub const NBEST: usize = 10;
+
 #[derive(Debug, thiserror::Error)]
 pub enum RecognizerError {
     #[error(transparent)]
@@ -49,6 +53,8 @@ pub struct Recognized {
     pub llr_per_frame: f64,
     /// The command-against-garbage posterior, before the SNR factor ([`crate::confidence`]).
     pub p_in_grammar: f64,
+    /// The N-best margin over the best other command ([`crate::confidence::nbest_margin`]).
+    pub margin_per_frame: Option<f64>,
     /// The utterance's estimated signal-to-noise ratio (dB).
     pub snr_db: f64,
     /// What the garbage search heard (filler words).
@@ -59,7 +65,7 @@ pub struct Recognized {
     /// [`crate::confidence`]).
     pub over_talk: bool,
     /// The command search's distinct N-best sentences and path scores (nats), best first (empty
-    /// unless [`RecognizerConfig::nbest`] is set; a debugging aid).
+    /// when [`RecognizerConfig::nbest`] is 0).
     pub nbest: Vec<(String, f64)>,
 }
 
@@ -74,7 +80,8 @@ pub struct RecognizerConfig {
     /// Grammar probability of each filler word of a garbage path (a word insertion penalty of
     /// the garbage search).
     pub filler_weight: f64,
-    /// Distinct N-best sentences of the command search to read (0: none; costs decode time).
+    /// Distinct N-best sentences of the command search to read, for the confidence's margin
+    /// over other commands ([`crate::confidence::nbest_margin`]; 0: none, no margin).
     pub nbest: usize,
     /// Speech enhancement before decoding ([`crate::denoise`]); `None` decodes the raw audio.
     pub denoise: Option<DenoiseConfig>,
@@ -100,7 +107,7 @@ impl Default for RecognizerConfig {
             confidence: ConfidenceConfig::default(),
             fillers: Some(crate::garbage::filler_file()),
             filler_weight: 1.0,
-            nbest: 0,
+            nbest: NBEST,
             // Off by default: the adapted acoustic model never heard its output (adapting on
             // enhanced audio would be the way to evaluate it).
             denoise: None,
@@ -573,6 +580,7 @@ impl Recognizer {
                 frames,
                 snr_db,
                 over_talk: seg.over_talk,
+                nbest: &g.nbest,
             },
         );
         Ok(Recognized {
@@ -585,6 +593,7 @@ impl Recognizer {
             decode_s,
             llr_per_frame: v.llr_per_frame,
             p_in_grammar: v.p_in_grammar,
+            margin_per_frame: v.margin_per_frame,
             snr_db,
             garbage_text: gar.map(|h| h.text).unwrap_or_default(),
             forced: seg.forced,
