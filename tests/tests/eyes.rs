@@ -498,6 +498,43 @@ async fn frames_travel_through_shared_memory_unless_no_shm() {
     assert_eq!(shm, 0, "rgbd --no-shm must not put frames in shared memory");
 }
 
+/// The niceness of every thread of process `pid` (field 19 of `/proc/<pid>/task/<tid>/stat`).
+fn thread_niceness(pid: u32) -> Vec<i64> {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).unwrap();
+    tasks
+        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("stat")).ok())
+        .map(|stat| {
+            // After the command's name in parentheses: field 3 (state) on; 19 is the niceness.
+            let rest = &stat[stat.rfind(')').unwrap() + 1..];
+            rest.split_whitespace().nth(16).unwrap().parse().unwrap()
+        })
+        .collect()
+}
+
+/// The simulated camera renders on the robot's CPU what a camera's hardware would: it runs at
+/// niceness 10 so that it yields the CPU to the robot's own processes (the speech recognizer
+/// fell seconds behind the microphone without it, two games on two cores), every thread of it;
+/// `--sim-niceness 0` leaves it at the launcher's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_simulated_camera_yields_the_cpu_to_the_robots_processes() {
+    // The launcher's, which a component is started with: this test's own.
+    let started_at = thread_niceness(std::process::id())[0];
+    for (args, want) in [
+        (&["--driver", "sim"][..], 10),
+        (&["--driver", "sim", "--sim-niceness", "0"][..], started_at),
+    ] {
+        let ns = unique_namespace("eyes-nice");
+        let launch = Launch::start(&rgbd_only_manifest(&ns, args), &ns, &[]);
+        frames_through(&launch, 1).await;
+        let pid = component_pid(&launch, "rgbd").expect("rgbd's pid");
+        let niceness = thread_niceness(pid);
+        assert!(
+            niceness.len() > 1 && niceness.iter().all(|&n| n == want),
+            "{args:?}: threads at niceness {niceness:?}, want all at {want}"
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The game's eyes: rgbd --camera-from-joints --ball-from-topic, ball_tracker and the deep
 // representation. The test plays the rest of the world: it publishes the robot's joint states

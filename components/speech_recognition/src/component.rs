@@ -371,6 +371,19 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 };
                 let msg = to_msg(&r, arrived.elapsed().as_secs_f64());
                 tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
+                // Why it is as sure as it is (see `confidence`): the parts of the confidence.
+                tracing::debug!(
+                    "heard {:?}: in grammar {:.2} (against the garbage {:?}: {:+.2} nats/frame), \
+                     N-best margin {}, estimated SNR {:.1} dB, over talk {}, cut at the longest {}",
+                    r.text,
+                    r.p_in_grammar,
+                    r.garbage_text,
+                    r.llr_per_frame,
+                    r.margin_per_frame.map_or("none".into(), |m| format!("{m:.2} nats/frame")),
+                    r.snr_db,
+                    r.over_talk,
+                    r.forced,
+                );
                 print(&msg);
                 match outbox.offer(msg) {
                     Offered::Send(mut msg) => out.publish(&mut msg).await?,
