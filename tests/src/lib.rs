@@ -301,15 +301,20 @@ pub fn signal(pid: u32, sig: &str) {
         .status();
 }
 
+/// The fields of a `/proc/.../stat` line after the command's name in parentheses (which may
+/// hold spaces and parentheses): the first is field 3, the state.
+pub fn stat_fields(stat: &str) -> Vec<&str> {
+    stat.rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect()
+}
+
 /// Whether process `pid` exists (and is not a zombie).
 pub fn alive(pid: u32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        Ok(stat) => !stat
-            .rsplit(')')
-            .next()
-            .unwrap_or("")
-            .trim_start()
-            .starts_with('Z'),
+        Ok(stat) => stat_fields(&stat).first().is_some_and(|s| *s != "Z"),
         Err(_) => false,
     }
 }
