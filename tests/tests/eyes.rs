@@ -503,11 +503,8 @@ fn thread_niceness(pid: u32) -> Vec<i64> {
     let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).unwrap();
     tasks
         .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("stat")).ok())
-        .map(|stat| {
-            // After the command's name in parentheses: field 3 (state) on; 19 is the niceness.
-            let rest = &stat[stat.rfind(')').unwrap() + 1..];
-            rest.split_whitespace().nth(16).unwrap().parse().unwrap()
-        })
+        // Field 19 is the 17th from field 3.
+        .map(|stat| stat_fields(&stat)[16].parse().unwrap())
         .collect()
 }
 
@@ -533,6 +530,22 @@ async fn the_simulated_camera_yields_the_cpu_to_the_robots_processes() {
             "{args:?}: threads at niceness {niceness:?}, want all at {want}"
         );
     }
+}
+
+/// A niceness out of range is a usage error naming the range, before anything starts.
+#[test]
+fn a_niceness_out_of_range_is_refused() {
+    let args: Vec<String> = ["--driver", "sim", "--sim-niceness", "20"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let out = run(&bin("rgbd"), &args, Duration::from_secs(20));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(64), "{stderr}");
+    assert!(
+        stderr.contains("--sim-niceness") && stderr.contains("0..=19"),
+        "{stderr}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
