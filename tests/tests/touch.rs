@@ -363,6 +363,8 @@ async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
         cut.silent_s - cut.sentence_start_s,
         cut.latency_s * 1000.0
     );
+    // What was heard, with its confidence: how close "stop" came to being asked about.
+    println!("{}", game.timeline.join("\n"));
     assert!(
         cut.latency_s <= 0.300,
         "the robot went on {:.0} ms after \"stop\" ended (at most 300 ms): {cut:?}\n{}",

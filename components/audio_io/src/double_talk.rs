@@ -38,9 +38,11 @@
 //!   [`Config::lookback_s`] before the first until [`Config::hold_s`] after the last (and on
 //!   until she pauses, once the robot's voice has died away): while the robot speaks, the
 //!   canceller's suppressor takes tens of dB out of her too, her first sounds above all.
-//! - **Otherwise, while the robot's voice may be in the room**, the canceller's output is cut to
-//!   its own noise floor (not to digital silence, which would drag the recognizer's floor down,
-//!   and the room's noise would then start an utterance when the robot stops). Before the echo
+//! - **Otherwise, while the robot's voice may be in the room**, the canceller's output is
+//!   replaced with noise at the room's floor (its output's floor where the robot is not heard):
+//!   not digital silence, which would drag the recognizer's floor down (the room's noise would
+//!   then start an utterance when the robot stops), and not the output scaled down, whose
+//!   swings the recognizer took for people talking. Before the echo
 //!   path is known (the robot's first words), everything heard while it speaks is cut: gating.
 //!
 //! Times are nanoseconds on the clock shared by the capture streams and the playback thread; a
@@ -330,8 +332,8 @@ pub struct DoubleTalk {
     /// The canceller's output passes whole from and until then (ns).
     hold_from_ns: i64,
     hold_until_ns: i64,
-    /// The gain at the end of the last output frame.
-    gain: f64,
+    /// The comfort noise's generator state ([`Self::comfort`]).
+    noise: u64,
     /// A new echo path not yet taken by [`Self::path_changed`].
     changed: Option<EchoPath>,
     /// The player started speaking over the robot, not yet taken by [`Self::player_started`].
@@ -355,7 +357,7 @@ impl DoubleTalk {
             residual: VecDeque::new(),
             hold_from_ns: i64::MIN,
             hold_until_ns: i64::MIN,
-            gain: 1.0,
+            noise: 0x9E37_79B9_7F4A_7C15,
             changed: None,
             started: false,
         }
@@ -695,39 +697,48 @@ impl DoubleTalk {
         for (k, f) in samples.chunks_mut(per_frame).enumerate() {
             let t = frame_time(t_ns, rate_hz, k * per_frame);
             let out = level_db(f);
-            let floor = self.out_floor.update(out, rise);
+            let robot = self.robot_at(self.index(t));
+            // The room's floor, measured where the robot is not heard: while it speaks, the
+            // canceller's suppressor takes the room's noise down with its voice.
+            let floor = match self.out_floor.db {
+                Some(db) if robot => db,
+                _ => self.out_floor.update(out, rise),
+            };
             let passed = t >= self.hold_from_ns && t < self.hold_until_ns;
             if passed && self.cfg.pass_microphone && !self.tail.copy(t, rate_hz, f) {
                 outcome.unheld_frames += 1;
             }
-            if !self.robot_at(self.index(t)) {
-                self.ramp(f, 1.0);
+            if !robot {
                 continue;
             }
             outcome.robot_frames += 1;
             if passed {
                 outcome.player_frames += 1;
-                self.ramp(f, 1.0);
             } else {
                 outcome.suppressed_frames += 1;
-                self.ramp(f, 10f64.powf((floor - out) / 20.0).min(1.0));
+                self.comfort(f, floor);
             }
         }
         outcome
     }
 
-    /// Scale a frame: a lower gain at once (the residue is cut from its first sample), a higher
-    /// one going linearly from the last frame's (no click as the player comes in).
-    fn ramp(&mut self, f: &mut [i16], gain: f64) {
-        let from = self.gain.min(gain);
-        self.gain = gain;
-        if from == 1.0 && gain == 1.0 {
-            return;
-        }
-        let n = f.len().max(1) as f64;
-        for (k, x) in f.iter_mut().enumerate() {
-            let g = from + (gain - from) * (k + 1) as f64 / n;
-            *x = (f64::from(*x) * g).round() as i16;
+    /// Replace a frame with noise at `floor_db`, the room's floor (digital silence while the
+    /// room has been heard only as that): what is cut of the robot's voice sounds like the room
+    /// without it, steady. The canceller's output while the robot speaks swings by tens of dB
+    /// from frame to frame (its suppressor takes the room's noise down with the voice, in
+    /// bursts); scaled down to its floor, it still stood far under the room's, and the
+    /// recognizer's end-pointer took those swings for people talking behind the player.
+    fn comfort(&mut self, f: &mut [i16], floor_db: f64) {
+        let amplitude = 3f64.sqrt() * 32768.0 * 10f64.powf(floor_db / 20.0);
+        for x in f.iter_mut() {
+            // xorshift64: uniform noise, whose RMS is its amplitude over the root of 3.
+            self.noise ^= self.noise << 13;
+            self.noise ^= self.noise >> 7;
+            self.noise ^= self.noise << 17;
+            let u = (self.noise >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+            *x = (u * amplitude)
+                .round()
+                .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
         }
     }
 }
@@ -815,6 +826,8 @@ mod tests {
         heard: Vec<f64>,
         /// Frames the microphone's stream does not deliver (lost on the way).
         mic_lost: std::ops::Range<usize>,
+        /// How much the canceller takes out of the room's noise while the robot speaks (dB).
+        floor_loss_db: f64,
     }
 
     impl Room {
@@ -827,6 +840,7 @@ mod tests {
                 player_loss_db: 0.0,
                 heard: Vec::new(),
                 mic_lost: 0..0,
+                floor_loss_db: 0.0,
             }
         }
 
@@ -858,7 +872,12 @@ mod tests {
                         .log10()
                 };
                 let mic = sum_db(echo, p, -70.0);
-                let out = sum_db(echo - erle, p - self.player_loss_db, -75.0);
+                let room = if echo > SILENCE_DB {
+                    -75.0 - self.floor_loss_db
+                } else {
+                    -75.0
+                };
+                let out = sum_db(echo - erle, p - self.player_loss_db, room);
                 self.heard.push(mic);
                 if !self.mic_lost.contains(&k) {
                     self.d.mic(t, RATE, &frame_at(mic, k));
@@ -904,6 +923,40 @@ mod tests {
         let (o, levels) = room.run(100, |k| Some(voice(k)), |_| None, 0.0);
         assert_eq!(o.player_frames, 0, "{o:?}");
         assert!(levels.iter().all(|&l| l < -65.0), "{levels:?}");
+    }
+
+    /// While the robot's voice is cut, the output is the room's own floor, steady, however far
+    /// the canceller takes the room's noise down with the robot's voice and whatever it lets
+    /// through: the recognizer's end-pointer must hear a quiet room, not talk.
+    #[test]
+    fn what_is_cut_of_the_robot_stands_steady_at_the_rooms_floor() {
+        let mut room = Room::new(12, -3.0);
+        room.floor_loss_db = 30.0;
+        // The room alone, through the canceller (-75 dBFS, as frames make it).
+        let (_, levels) = room.run(50, |_| None, |_| None, 0.0);
+        let floor = levels[49];
+        assert!((floor + 75.0).abs() < 2.0, "{levels:?}");
+        // Three seconds of the robot, the canceller taking 20 to 60 dB out of its voice and
+        // 30 dB out of the room; then the room alone again.
+        let mut cut = Vec::new();
+        for i in 0..30 {
+            let erle = 20.0 + f64::from(i * 17 % 41);
+            let (o, levels) = room.run(10, |k| Some(voice(k)), |_| None, erle);
+            assert_eq!(o.player_frames, 0, "{o:?}");
+            cut.extend(levels);
+        }
+        // From the echo's arrival (12 frames) on.
+        let off: Vec<f64> = cut[12..]
+            .iter()
+            .copied()
+            .filter(|l| (l - floor).abs() > 1.5)
+            .collect();
+        assert!(
+            off.is_empty(),
+            "frames off the room's floor ({floor:.1}): {off:?}"
+        );
+        let (_, after) = room.run(100, |_| None, |_| None, 40.0);
+        assert!(after.iter().all(|&l| (l - floor).abs() < 1.5), "{after:?}");
     }
 
     #[test]
