@@ -832,7 +832,7 @@ struct Detector {
     /// The time of the end of the microphone's last frame given to `dt`.
     raw_until_ns: i64,
     /// The canceller's output held back (first sample's time, samples), while the robot's voice
-    /// may be in the room, until the microphone's frames of the next `lookback_s` are known.
+    /// may be in the room, until the microphone's frames of the next `holdback_ns` are known.
     held: std::collections::VecDeque<(i64, Vec<i16>)>,
     /// The counters `echo_suppressed_frames`, `double_talk_frames` and
     /// `double_talk_unheld_frames`.
@@ -889,7 +889,7 @@ impl Detector {
         }
         self.dt.canceller(t_ns, rate, &samples);
         self.held.push_back((t_ns, samples));
-        let lookback = (self.dt.config().lookback_s * 1e9) as i64;
+        let lookback = self.dt.holdback_ns();
         let mut ready = Vec::new();
         // Held back only while the robot's voice may be in the room, where the player's first
         // sounds may come before they are known to be hers.

@@ -26,7 +26,14 @@
 //!   over that 99th percentile, within [`Config::margin_db`]) and over its own floor, in
 //!   [`Config::onset_frames`] of the last
 //!   [`Config::onset_window`] frames. What the canceller let through does not enter into it:
-//!   it is in the canceller's output, not in the microphone's excess over the echo.
+//!   it is in the canceller's output, not in the microphone's excess over the echo. But a busy
+//!   machine's timing can shift the robot's voice on the microphone against the played
+//!   reference by more than the slack, and the end of its own word then stands over the echo
+//!   predicted for it; so she is taken only once **the canceller's output confirms her**
+//!   ([`Config::confirm_db`]): one of its frames near her onset stands over what the canceller
+//!   leaves of the robot lately, and over the room. The canceller runs on the sound server's
+//!   clock, where the robot's word is taken out as ever. The canceller's output is held back
+//!   [`Config::confirm_s`] more for it ([`DoubleTalk::holdback_ns`]).
 //! - **Or the canceller's output shows her** ([`DoubleTalk::canceller`]): where the robot is
 //!   heard, and the canceller takes [`Config::min_erle_db`] or more out of the robot lately
 //!   (the median over [`Config::residual_window_s`]), its output stands within
@@ -109,6 +116,15 @@ pub struct Config {
     /// Frames of the canceller's output like the player's among the last `onset_window` that
     /// make the player speak (its leaks come in bursts of a frame or two).
     pub canceller_onset_frames: usize,
+    /// The player heard on the microphone alone (over the robot's echo) is taken only once the
+    /// canceller's output confirms her: one of its frames, from `confirm_before_frames` before
+    /// her onset to `confirm_s` after, stands this far over what the canceller leaves of the
+    /// robot lately (dB over the median of its residue; while that is not known, she is taken
+    /// at once), and [`Config::over_floor_db`] over the room as the canceller passes it.
+    /// `None`: she is taken at once.
+    pub confirm_db: Option<f64>,
+    pub confirm_before_frames: i64,
+    pub confirm_s: f64,
 }
 
 impl Default for Config {
@@ -137,6 +153,9 @@ impl Default for Config {
             min_erle_db: 20.0,
             player_share_db: 8.0,
             canceller_onset_frames: 3,
+            confirm_db: Some(10.0),
+            confirm_before_frames: 8,
+            confirm_s: 0.1,
         }
     }
 }
@@ -329,6 +348,13 @@ pub struct DoubleTalk {
     /// How far under the microphone the canceller's output stood in the robot's recent frames
     /// (dB), the newest last.
     residual: VecDeque<f64>,
+    /// How much the canceller takes out of the robot lately (dB; the median of `residual`),
+    /// once it has heard a second of it.
+    erle: Option<f64>,
+    /// The canceller's frames (indices) that stood `confirm_db` over its residue, newest last.
+    shown: VecDeque<i64>,
+    /// The player heard on the microphone, not yet confirmed by the canceller's output: when.
+    pending_ns: Option<i64>,
     /// The canceller's output passes whole from and until then (ns).
     hold_from_ns: i64,
     hold_until_ns: i64,
@@ -355,6 +381,9 @@ impl DoubleTalk {
             recent: VecDeque::new(),
             recent_out: VecDeque::new(),
             residual: VecDeque::new(),
+            erle: None,
+            shown: VecDeque::new(),
+            pending_ns: None,
             hold_from_ns: i64::MIN,
             hold_until_ns: i64::MIN,
             noise: 0x9E37_79B9_7F4A_7C15,
@@ -428,6 +457,17 @@ impl DoubleTalk {
         }
     }
 
+    /// How long the caller holds the canceller's output back while the robot's voice may be in
+    /// the room (ns): [`Config::lookback_s`], and [`Config::confirm_s`] more while a player heard
+    /// on the microphone may wait for the canceller's output to confirm her.
+    pub fn holdback_ns(&self) -> i64 {
+        let confirm = match self.cfg.confirm_db {
+            Some(_) => self.cfg.confirm_s,
+            None => 0.0,
+        };
+        ((self.cfg.lookback_s + confirm) * 1e9) as i64
+    }
+
     /// Whether the robot's voice may be in the room at `t_ns` on the microphone's clock: the
     /// canceller's output of that time is held back [`Config::lookback_s`] only then.
     pub fn robot_may_be_heard(&self, t_ns: i64) -> bool {
@@ -471,7 +511,7 @@ impl DoubleTalk {
         let keep = self.keep();
         let rise = self.rise();
         if self.cfg.pass_microphone {
-            let keep_ns = (self.cfg.lookback_s * 1e9) as i64 + 1_000_000_000;
+            let keep_ns = self.holdback_ns() + 1_000_000_000;
             self.tail.push(t_ns, rate_hz, samples, keep_ns);
         }
         let hold_ns = (self.cfg.hold_s * 1e9) as i64;
@@ -525,6 +565,7 @@ impl DoubleTalk {
             r.sort_by(f64::total_cmp);
             -r[r.len() / 2]
         });
+        self.erle = erle;
         for (t, f) in frames(t_ns, rate_hz, self.cfg.frame_ns, samples) {
             let i = self.index(t);
             let l = level_db(f);
@@ -556,8 +597,67 @@ impl DoubleTalk {
                     self.residual.pop_front();
                 }
             }
+            // More than the robot's residue, and more than the room (whose noise, left where
+            // the microphone holds little of the robot, stands close to the microphone's).
+            if let (Some(e), Some(db)) = (erle, self.cfg.confirm_db)
+                && share >= -e + db
+                && self
+                    .out_floor
+                    .db
+                    .is_none_or(|room| l >= room + self.cfg.over_floor_db)
+            {
+                self.shown.push_back(i);
+                while self.shown.len() > 64 {
+                    self.shown.pop_front();
+                }
+            }
+            self.confirm(i);
             self.player_frame(t, like_player, true);
         }
+    }
+
+    /// Whether the canceller's output showed more than the robot's residue near the
+    /// microphone's onset at frame `onset` (see [`Config::confirm_db`]), as far as it is known.
+    fn shown_near(&self, onset: i64) -> bool {
+        let after = self.frames_of(self.cfg.confirm_s) as i64;
+        self.shown
+            .iter()
+            .any(|&i| i >= onset - self.cfg.confirm_before_frames && i <= onset + after)
+    }
+
+    /// The canceller's frame `i` is known: a player heard on the microphone and waiting is
+    /// taken when the canceller's output showed her, or dropped when it did not in time.
+    fn confirm(&mut self, i: i64) {
+        let Some(t) = self.pending_ns else {
+            return;
+        };
+        let onset = self.index(t);
+        if self.shown_near(onset) {
+            self.pending_ns = None;
+            self.start(
+                t,
+                "on the microphone, over the robot's echo, and in the canceller's output",
+            );
+            self.hold_until_ns = self.hold_until_ns.max(t + (self.cfg.hold_s * 1e9) as i64);
+        } else if i > onset + self.frames_of(self.cfg.confirm_s) as i64 {
+            self.pending_ns = None;
+            tracing::debug!(
+                frame = onset,
+                "not the player: heard on the microphone over the robot's echo, but the \
+                 canceller's output showed nothing over the robot's residue"
+            );
+        }
+    }
+
+    /// The player starts over the robot at `t` (heard `how`): her frames pass from
+    /// [`Config::lookback_s`] before.
+    fn start(&mut self, t: i64, how: &str) {
+        tracing::debug!(
+            frame = self.index(t),
+            "the player starts over the robot: heard {how}"
+        );
+        self.started = true;
+        self.hold_from_ns = t - (self.cfg.lookback_s * 1e9) as i64;
     }
 
     /// A frame at `t` of the microphone (`canceller`: of the canceller's output) like the
@@ -583,16 +683,27 @@ impl DoubleTalk {
         };
         if like_player && (holding || run >= onset) {
             if !holding {
-                tracing::debug!(
-                    frame = self.index(t),
-                    "the player starts over the robot: heard {}",
-                    match canceller {
-                        true => "in the canceller's output",
-                        false => "on the microphone, over the robot's echo",
+                if canceller {
+                    self.pending_ns = None;
+                    self.start(t, "in the canceller's output");
+                } else if self.cfg.confirm_db.is_none()
+                    || self.erle.is_none()
+                    || self.shown_near(self.index(t))
+                {
+                    self.pending_ns = None;
+                    self.start(t, "on the microphone, over the robot's echo");
+                } else {
+                    // A busy machine's timing can put the robot's own words over the echo
+                    // predicted for them: the canceller, on the server's clock, tells.
+                    let window = self.frames_of(self.cfg.confirm_s) as i64;
+                    if self
+                        .pending_ns
+                        .is_none_or(|p| self.index(t) - self.index(p) > window)
+                    {
+                        self.pending_ns = Some(t);
                     }
-                );
-                self.started = true;
-                self.hold_from_ns = t - (self.cfg.lookback_s * 1e9) as i64;
+                    return;
+                }
             }
             self.hold_until_ns = self.hold_until_ns.max(t + (self.cfg.hold_s * 1e9) as i64);
         }
@@ -1001,14 +1112,14 @@ mod tests {
         assert!(levels[10..].iter().all(|&l| l > -50.0), "{levels:?}");
     }
 
-    /// While the robot speaks, the canceller takes 30 dB out of the player too: the frames
-    /// passed as hers are the microphone's, not the canceller's.
+    /// While the robot speaks, the canceller takes 30 dB out of the player too (and 45 out of
+    /// the robot): the frames passed as hers are the microphone's, not the canceller's.
     #[test]
     fn the_players_frames_are_the_microphone_as_it_is() {
         let mut room = Room::new(12, -3.0);
         room.player_loss_db = 30.0;
-        room.run(200, |k| Some(voice(k)), |_| None, 20.0);
-        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 20.0);
+        room.run(200, |k| Some(voice(k)), |_| None, 45.0);
+        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 45.0);
         assert!(o.player_frames >= 40, "{o:?}");
         assert_eq!(o.unheld_frames, 0, "{o:?}");
         let heard = &room.heard[room.heard.len() - 50..];
@@ -1020,15 +1131,39 @@ mod tests {
         }
     }
 
+    /// A busy machine's timing: the robot's voice reaches the microphone 80 ms later than the
+    /// echo path measured says, so the end of its word stands over the echo predicted for it,
+    /// as a player would. The canceller (on the sound server's clock) took the word out as
+    /// ever: without its word, the microphone alone takes the robot for her.
+    #[test]
+    fn the_robot_heard_late_on_the_microphone_is_not_the_player() {
+        let word = |k: usize| (k % 40 < 15).then_some(-20.0);
+        for confirm in [None, Some(10.0)] {
+            let mut room = Room::new(12, -3.0);
+            room.d.cfg.confirm_db = confirm;
+            room.run(200, |k| Some(voice(k)), |_| None, 45.0);
+            assert_eq!(room.d.path().map(|p| p.delay_frames), Some(12));
+            room.delay = 20;
+            let (o, _) = room.run(40, word, |_| None, 45.0);
+            match confirm {
+                None => assert!(room.d.player_started(), "the scenario: {o:?}"),
+                Some(_) => {
+                    assert!(!room.d.player_started(), "{o:?}");
+                    assert_eq!(o.player_frames, 0, "{o:?}");
+                }
+            }
+        }
+    }
+
     /// Five frames of the microphone's stream lost while she speaks: those frames pass as the
     /// canceller left them, and are counted; the next ones are the microphone's again.
     #[test]
     fn the_players_frames_the_microphone_lost_are_counted() {
         let mut room = Room::new(12, -3.0);
         room.player_loss_db = 30.0;
-        room.run(200, |k| Some(voice(k)), |_| None, 20.0);
+        room.run(200, |k| Some(voice(k)), |_| None, 45.0);
         room.mic_lost = 230..235;
-        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 20.0);
+        let (o, levels) = room.run(50, |k| Some(voice(k)), |k| Some(voice(k + 5) + 6.0), 45.0);
         assert!(o.player_frames >= 40, "{o:?}");
         assert_eq!(o.unheld_frames, 5, "{o:?}");
         let heard = &room.heard[200..];
