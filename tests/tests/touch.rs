@@ -303,9 +303,9 @@ async fn touch_a_still_ball_with_every_sound_through_a_sound_server() {
 /// Ignored: it still fails now and then beside another game, as the suite runs it (2 runs of 10
 /// beside `touch_a_moving_ball` with the cut frames at the room's floor and microphone onsets
 /// confirmed by the canceller; 7 of 28 with the first alone; before either, 1 of 14 on another
-/// day, and 1 of 10 run alone). The
-/// failures left: "stop" heard right but under the dialog's 0.7 (0.70, and 0.36 when her "s" was
-/// lost, heard late through the canceller), or as "correct" with the recognizer a second behind.
+/// day, and 1 of 10 run alone). The failures left: "stop" heard right but under the dialog's 0.7
+/// (0.70, and 0.36 when her "s" was lost, heard late through the canceller), or as "correct"
+/// with the recognizer a second behind.
 /// See ARCHITECTURE.md, "The robot's own voice".
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "fails 2 runs in 10 beside another game: \"stop\" heard under the dialog's 0.7 when her first sounds are lost"]

@@ -358,8 +358,8 @@ pub struct DoubleTalk {
     /// The canceller's output passes whole from and until then (ns).
     hold_from_ns: i64,
     hold_until_ns: i64,
-    /// The comfort noise's generator state ([`Self::comfort`]).
-    noise: u64,
+    /// The comfort noise's generator ([`Self::comfort`]).
+    noise: audio::signal::NoiseRng,
     /// A new echo path not yet taken by [`Self::path_changed`].
     changed: Option<EchoPath>,
     /// The player started speaking over the robot, not yet taken by [`Self::player_started`].
@@ -386,7 +386,7 @@ impl DoubleTalk {
             pending_ns: None,
             hold_from_ns: i64::MIN,
             hold_until_ns: i64::MIN,
-            noise: 0x9E37_79B9_7F4A_7C15,
+            noise: audio::signal::NoiseRng::new(0x9E37_79B9_7F4A_7C15),
             changed: None,
             started: false,
         }
@@ -842,11 +842,8 @@ impl DoubleTalk {
     fn comfort(&mut self, f: &mut [i16], floor_db: f64) {
         let amplitude = 3f64.sqrt() * 32768.0 * 10f64.powf(floor_db / 20.0);
         for x in f.iter_mut() {
-            // xorshift64: uniform noise, whose RMS is its amplitude over the root of 3.
-            self.noise ^= self.noise << 13;
-            self.noise ^= self.noise >> 7;
-            self.noise ^= self.noise << 17;
-            let u = (self.noise >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+            // Uniform noise, whose RMS is its amplitude over the root of 3.
+            let u = self.noise.uniform() * 2.0 - 1.0;
             *x = (u * amplitude)
                 .round()
                 .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
