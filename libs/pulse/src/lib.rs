@@ -437,9 +437,14 @@ impl EchoCanceller {
     ) -> Result<Self, Error> {
         // No gain control: the canceller would change the microphone's volume (analog) or the
         // signal's level (digital) as people and the robot speak, under the recognizer's
-        // end-pointer, which follows the room's level itself.
+        // end-pointer, which follows the room's level itself. No noise suppression either: it
+        // took the room 19 dB under the microphone's, so the canceller's output and the
+        // microphone as it is (what the player's words over the robot are) were two rooms, and
+        // it clipped the soft first sounds of words ("s"); the recognizer's model is adapted to
+        // noisy speech as the microphone hears it.
         let mut argument = String::from(
-            "aec_method=webrtc aec_args=\"analog_gain_control=0 digital_gain_control=0\"",
+            "aec_method=webrtc aec_args=\"analog_gain_control=0 digital_gain_control=0 \
+             noise_suppression=0\"",
         );
         let mut tag = String::new();
         if source_master != DEFAULT_SOURCE {
