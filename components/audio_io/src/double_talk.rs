@@ -17,8 +17,9 @@
 //!   every [`Config::path_every_s`] of the robot's speech; a measure whose correlation is under
 //!   [`Config::min_correlation`] (the player spoke through most of it) is not taken.
 //! - **The echo a frame may hold**: the loudest of the reference's recent frames at that delay
-//!   plus the gain, a frame further back counting less by the room's decay (its
-//!   reverberation), [`Config::jitter_frames`] either side (the streams' timing). The decay is
+//!   plus the gain, [`Config::jitter_frames`] either side at full level (the streams' timing,
+//!   early or late), a frame further back than that counting less by the room's decay (its
+//!   reverberation). The decay is
 //!   measured with the path: the fastest of [`Config::decays_db_per_s`] under which the
 //!   microphone, while the robot speaks, stands at most [`Config::fit_db`] over the echo so
 //!   predicted in 99 % of the frames; the slowest when none does.
@@ -46,7 +47,7 @@
 //!   until she pauses, once the robot's voice has died away): while the robot speaks, the
 //!   canceller's suppressor takes tens of dB out of her too, her first sounds above all.
 //! - **Otherwise, while the robot's voice may be in the room**, the canceller's output is
-//!   replaced with noise at the room's floor (its output's floor where the robot is not heard):
+//!   replaced with noise at the room's level (its output's where the robot is not heard):
 //!   not digital silence, which would drag the recognizer's floor down (the room's noise would
 //!   then start an utterance when the robot stops), and not the output scaled down, whose
 //!   swings the recognizer took for people talking. Before the echo
@@ -59,6 +60,9 @@ use std::collections::VecDeque;
 
 /// Level of digital silence (dBFS).
 pub const SILENCE_DB: f64 = -120.0;
+
+/// How much of the room the comfort noise's level is taken over (s).
+const ROOM_S: f64 = 3.0;
 
 /// The detector's settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,7 +84,8 @@ pub struct Config {
     /// How far over the predicted echo the microphone may stand, in 99 % of the robot's frames,
     /// for a decay to fit (dB).
     pub fit_db: f64,
-    /// Frames either side of the delay a frame's echo may fall on.
+    /// Frames either side of the delay a frame's echo may fall on (at full level; the room's
+    /// decay counts from there).
     pub jitter_frames: i64,
     /// The least and the most the microphone must stand over the echo it may hold for a frame
     /// to be the player's (dB).
@@ -336,6 +341,9 @@ pub struct DoubleTalk {
     tail: Tail,
     mic_floor: Floor,
     out_floor: Floor,
+    /// The canceller's output where the robot is not heard, its levels over the last [`ROOM_S`]
+    /// (dBFS), newest last: the room as the recognizer hears it.
+    room: VecDeque<f64>,
     /// The last reference frame with voice.
     last_voiced: Option<i64>,
     path: Option<EchoPath>,
@@ -375,6 +383,7 @@ impl DoubleTalk {
             tail: Tail::default(),
             mic_floor: Floor::default(),
             out_floor: Floor::default(),
+            room: VecDeque::new(),
             last_voiced: None,
             path: None,
             voiced_since_measure: 0,
@@ -497,9 +506,12 @@ impl DoubleTalk {
         let decay = path.decay_db_per_s * self.cfg.frame_ns as f64 * 1e-9;
         let back = self.frames_of(self.cfg.tail_s) as i64;
         let mut echo = SILENCE_DB;
-        for j in -self.cfg.jitter_frames..=back {
+        let jitter = self.cfg.jitter_frames;
+        for j in -jitter..=back + jitter {
             if let Some(r) = self.reference.at(i - path.delay_frames - j) {
-                let fade = decay * j.max(0) as f64;
+                // The streams' timing may put a frame `jitter` either side of the delay: its
+                // echo fades only from there.
+                let fade = decay * (j - jitter).max(0) as f64;
                 echo = echo.max(r + path.gain_db - fade);
             }
         }
@@ -809,12 +821,19 @@ impl DoubleTalk {
             let t = frame_time(t_ns, rate_hz, k * per_frame);
             let out = level_db(f);
             let robot = self.robot_at(self.index(t));
-            // The room's floor, measured where the robot is not heard: while it speaks, the
-            // canceller's suppressor takes the room's noise down with its voice.
+            // The room's floor and level, measured where the robot is not heard: while it
+            // speaks, the canceller's suppressor takes the room's noise down with its voice.
             let floor = match self.out_floor.db {
                 Some(db) if robot => db,
                 _ => self.out_floor.update(out, rise),
             };
+            if !robot {
+                let keep = self.frames_of(ROOM_S);
+                self.room.push_back(out);
+                while self.room.len() > keep {
+                    self.room.pop_front();
+                }
+            }
             let passed = t >= self.hold_from_ns && t < self.hold_until_ns;
             if passed && self.cfg.pass_microphone && !self.tail.copy(t, rate_hz, f) {
                 outcome.unheld_frames += 1;
@@ -827,20 +846,35 @@ impl DoubleTalk {
                 outcome.player_frames += 1;
             } else {
                 outcome.suppressed_frames += 1;
-                self.comfort(f, floor);
+                let level = self.room_level().unwrap_or(floor);
+                self.comfort(f, level);
             }
         }
         outcome
     }
 
-    /// Replace a frame with noise at `floor_db`, the room's floor (digital silence while the
+    /// The room's level as the canceller passes it where the robot is not heard: the 20th
+    /// percentile of its frames there over the last [`ROOM_S`] (the player's words, if she spoke
+    /// lately, stand over it). `None` before any.
+    fn room_level(&self) -> Option<f64> {
+        if self.room.is_empty() {
+            return None;
+        }
+        let mut v: Vec<f64> = self.room.iter().copied().collect();
+        v.sort_by(f64::total_cmp);
+        Some(v[v.len() / 5])
+    }
+
+    /// Replace a frame with noise at `level_db`, the room's level (digital silence while the
     /// room has been heard only as that): what is cut of the robot's voice sounds like the room
     /// without it, steady. The canceller's output while the robot speaks swings by tens of dB
     /// from frame to frame (its suppressor takes the room's noise down with the voice, in
     /// bursts); scaled down to its floor, it still stood far under the room's, and the
-    /// recognizer's end-pointer took those swings for people talking behind the player.
-    fn comfort(&mut self, f: &mut [i16], floor_db: f64) {
-        let amplitude = 3f64.sqrt() * 32768.0 * 10f64.powf(floor_db / 20.0);
+    /// recognizer's end-pointer took those swings for people talking behind the player. Nor
+    /// the room's floor (its quietest frames): 8 dB under the room in the test's, a step the
+    /// end-pointer took for talk when the robot started speaking.
+    fn comfort(&mut self, f: &mut [i16], level_db: f64) {
+        let amplitude = 3f64.sqrt() * 32768.0 * 10f64.powf(level_db / 20.0);
         for x in f.iter_mut() {
             // Uniform noise, whose RMS is its amplitude over the root of 3.
             let u = self.noise.uniform() * 2.0 - 1.0;
@@ -936,6 +970,9 @@ mod tests {
         mic_lost: std::ops::Range<usize>,
         /// How much the canceller takes out of the room's noise while the robot speaks (dB).
         floor_loss_db: f64,
+        /// How far the room's noise through the canceller dips in one frame of ten (dB): a
+        /// suppressor releasing, a noise suppressor's swings.
+        room_dip_db: f64,
     }
 
     impl Room {
@@ -949,6 +986,7 @@ mod tests {
                 heard: Vec::new(),
                 mic_lost: 0..0,
                 floor_loss_db: 0.0,
+                room_dip_db: 0.0,
             }
         }
 
@@ -982,6 +1020,8 @@ mod tests {
                 let mic = sum_db(echo, p, -70.0);
                 let room = if echo > SILENCE_DB {
                     -75.0 - self.floor_loss_db
+                } else if k.is_multiple_of(10) {
+                    -75.0 - self.room_dip_db
                 } else {
                     -75.0
                 };
@@ -1037,7 +1077,7 @@ mod tests {
     /// the canceller takes the room's noise down with the robot's voice and whatever it lets
     /// through: the recognizer's end-pointer must hear a quiet room, not talk.
     #[test]
-    fn what_is_cut_of_the_robot_stands_steady_at_the_rooms_floor() {
+    fn what_is_cut_of_the_robot_stands_steady_at_the_rooms_level() {
         let mut room = Room::new(12, -3.0);
         room.floor_loss_db = 30.0;
         // The room alone, through the canceller (-75 dBFS, as frames make it).
@@ -1061,10 +1101,42 @@ mod tests {
             .collect();
         assert!(
             off.is_empty(),
-            "frames off the room's floor ({floor:.1}): {off:?}"
+            "frames off the room's level ({floor:.1}): {off:?}"
         );
         let (_, after) = room.run(100, |_| None, |_| None, 40.0);
         assert!(after.iter().all(|&l| (l - floor).abs() < 1.5), "{after:?}");
+    }
+
+    /// Where the room's noise through the canceller dips now and then, what is cut of the robot
+    /// stands at the room's usual level, not at its dips: a step down when the robot starts
+    /// speaking is talk to the recognizer's end-pointer.
+    #[test]
+    fn what_is_cut_of_the_robot_stands_at_the_rooms_level_not_its_dips() {
+        let mut room = Room::new(12, -3.0);
+        room.room_dip_db = 15.0;
+        room.floor_loss_db = 30.0;
+        let (_, mut before) = room.run(300, |_| None, |_| None, 0.0);
+        before.sort_by(f64::total_cmp);
+        // -75 dBFS as frames make it (-76.3), the dips at -90.
+        let usual = before[before.len() / 2];
+        let mut cut = Vec::new();
+        for i in 0..20 {
+            let erle = 20.0 + f64::from(i * 17 % 41);
+            let (o, levels) = room.run(10, |k| Some(voice(k)), |_| None, erle);
+            assert_eq!(o.player_frames, 0, "{o:?}");
+            cut.extend(levels);
+        }
+        // From the echo's arrival (12 frames) on: within 3 dB of the room's usual level, its
+        // dips 15 dB under it.
+        let off: Vec<f64> = cut[12..]
+            .iter()
+            .copied()
+            .filter(|l| (l - usual).abs() > 3.0)
+            .collect();
+        assert!(
+            off.is_empty(),
+            "frames off the room's level ({usual:.1}): {off:?}"
+        );
     }
 
     #[test]
@@ -1150,6 +1222,23 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The streams' timing puts the robot's voice on the microphone a few frames later than the
+    /// echo path measured (30 ms, within [`Config::jitter_frames`]): the ends of its words are
+    /// heard where the reference has fallen silent. They are its echo, not the player, even
+    /// without the canceller's confirmation.
+    #[test]
+    fn the_robot_heard_a_few_frames_late_is_its_echo() {
+        let word = |k: usize| (k % 40 < 15).then_some(-20.0);
+        let mut room = Room::new(12, -3.0);
+        room.d.cfg.confirm_db = None;
+        room.run(200, |k| Some(voice(k)), |_| None, 45.0);
+        assert_eq!(room.d.path().map(|p| p.delay_frames), Some(12));
+        room.delay = 15;
+        let (o, _) = room.run(120, word, |_| None, 45.0);
+        assert!(!room.d.player_started(), "{o:?}");
+        assert_eq!(o.player_frames, 0, "{o:?}");
     }
 
     /// Five frames of the microphone's stream lost while she speaks: those frames pass as the
