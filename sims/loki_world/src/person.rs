@@ -189,6 +189,9 @@ pub async fn run(
         sc.ball.held,
     )));
     let seen = Arc::new(Mutex::new(Seen::default()));
+    // The ball, the voice and the senses run beside the scenario and end with it (dropping the
+    // set aborts them), before the component's session closes under them.
+    let mut tasks = tokio::task::JoinSet::new();
 
     // The ball, at a steady rate.
     let ball_pub = bus.publisher(&topics::SIM_BALL).await?;
@@ -196,7 +199,7 @@ pub async fn run(
         let ball = ball.clone();
         let spec = sc.ball.clone();
         let period = Duration::from_secs_f64(1.0 / cfg.ball_rate_hz.max(1.0));
-        tokio::spawn(async move {
+        tasks.spawn(async move {
             let mut tick = tokio::time::interval(period);
             tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
             loop {
@@ -236,10 +239,10 @@ pub async fn run(
         VoiceOut::Bus => AudioOut::Bus(bus.publisher(&topics::AUDIO_IN).await?),
         VoiceOut::Pulse { server, sink } => AudioOut::Pulse(into_room(server.clone(), sink)?),
     };
-    tokio::spawn(audio_stream(out, speech_rx, noise_power, cfg.seed));
+    tasks.spawn(audio_stream(out, speech_rx, noise_power, cfg.seed));
 
     // The senses.
-    spawn_senses(&bus, seen.clone()).await?;
+    spawn_senses(&bus, seen.clone(), &mut tasks).await?;
 
     tracing::info!(
         "scenario {:?}: {} steps; ball {:.0} mm at ({:.2}, {:.2}, {:.2}) m",
@@ -522,12 +525,16 @@ async fn audio_stream(
     }
 }
 
-async fn spawn_senses(bus: &Bus, seen: Arc<Mutex<Seen>>) -> anyhow::Result<()> {
+async fn spawn_senses(
+    bus: &Bus,
+    seen: Arc<Mutex<Seen>>,
+    tasks: &mut tokio::task::JoinSet<()>,
+) -> anyhow::Result<()> {
     let speaking = bus.subscriber(&topics::SPEECH_SPEAKING).await?;
     let transitions = bus.subscriber(&topics::EXECUTIVE_TRANSITIONS).await?;
     let reach = bus.subscriber(&topics::BODY_REACH_STATUS).await?;
     let events = bus.subscriber(&topics::VISION_BALL_EVENTS).await?;
-    tokio::spawn(async move {
+    tasks.spawn(async move {
         loop {
             tokio::select! {
                 m = speaking.recv() => {
