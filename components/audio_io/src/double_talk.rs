@@ -1084,25 +1084,9 @@ mod tests {
         let (_, levels) = room.run(50, |_| None, |_| None, 0.0);
         let floor = levels[49];
         assert!((floor + 75.0).abs() < 2.0, "{levels:?}");
-        // Three seconds of the robot, the canceller taking 20 to 60 dB out of its voice and
-        // 30 dB out of the room; then the room alone again.
-        let mut cut = Vec::new();
-        for i in 0..30 {
-            let erle = 20.0 + f64::from(i * 17 % 41);
-            let (o, levels) = room.run(10, |k| Some(voice(k)), |_| None, erle);
-            assert_eq!(o.player_frames, 0, "{o:?}");
-            cut.extend(levels);
-        }
-        // From the echo's arrival (12 frames) on.
-        let off: Vec<f64> = cut[12..]
-            .iter()
-            .copied()
-            .filter(|l| (l - floor).abs() > 1.5)
-            .collect();
-        assert!(
-            off.is_empty(),
-            "frames off the room's level ({floor:.1}): {off:?}"
-        );
+        // Three seconds of the robot, then the room alone again.
+        let cut = robot_speaks(&mut room, 30);
+        assert_steady(&cut, floor, 1.5);
         let (_, after) = room.run(100, |_| None, |_| None, 40.0);
         assert!(after.iter().all(|&l| (l - floor).abs() < 1.5), "{after:?}");
     }
@@ -1119,23 +1103,35 @@ mod tests {
         before.sort_by(f64::total_cmp);
         // -75 dBFS as frames make it (-76.3), the dips at -90.
         let usual = before[before.len() / 2];
+        // Within 3 dB of the room's usual level, its dips 15 dB under it.
+        let cut = robot_speaks(&mut room, 20);
+        assert_steady(&cut, usual, 3.0);
+    }
+
+    /// The robot speaks `chunks` times 10 frames, the canceller taking 20 to 60 dB out of its
+    /// voice (and `floor_loss_db` out of the room) and the detector hearing no player: the
+    /// output's levels.
+    fn robot_speaks(room: &mut Room, chunks: i32) -> Vec<f64> {
         let mut cut = Vec::new();
-        for i in 0..20 {
+        for i in 0..chunks {
             let erle = 20.0 + f64::from(i * 17 % 41);
             let (o, levels) = room.run(10, |k| Some(voice(k)), |_| None, erle);
             assert_eq!(o.player_frames, 0, "{o:?}");
             cut.extend(levels);
         }
-        // From the echo's arrival (12 frames) on: within 3 dB of the room's usual level, its
-        // dips 15 dB under it.
-        let off: Vec<f64> = cut[12..]
+        cut
+    }
+
+    /// Every level from the echo's arrival (12 frames) on within `tolerance_db` of `level`.
+    fn assert_steady(levels: &[f64], level: f64, tolerance_db: f64) {
+        let off: Vec<f64> = levels[12..]
             .iter()
             .copied()
-            .filter(|l| (l - usual).abs() > 3.0)
+            .filter(|l| (l - level).abs() > tolerance_db)
             .collect();
         assert!(
             off.is_empty(),
-            "frames off the room's level ({usual:.1}): {off:?}"
+            "frames off the room's level ({level:.1}): {off:?}"
         );
     }
 
