@@ -214,6 +214,8 @@ pub struct TouchCtx {
     ball_world: Option<[f64; 3]>,
     ball_reported: Option<[f64; 3]>,
     ball_camera_distance: Option<f64>,
+    /// Since when the tracker has held the ball without a break while out of sight.
+    held_out_of_sight_since: Option<Duration>,
 }
 
 impl TouchCtx {
@@ -230,6 +232,7 @@ impl TouchCtx {
             ball_world: None,
             ball_reported: None,
             ball_camera_distance: None,
+            held_out_of_sight_since: None,
         }
     }
 
@@ -823,9 +826,22 @@ impl TouchGame {
 
     /// A track from `vision/ball`: raises `ball:moved` when the ball's `world` centre moved more
     /// than `ball_moved_m` since the last report (the first position is only recorded).
+    ///
+    /// Out of sight, a ball the tracker still holds is followed again (`ball:in_view`) once it
+    /// is well inside the image, or once it has been held for [`STILL_HELD_S`] wherever it is:
+    /// reported at the border while the head turned, and held there by a head that stopped, it
+    /// never left.
     pub fn ball_track(&mut self, track: &BallTrack, now: Duration) -> Outcome {
         let mut out = self.ball_track_moved(track, now);
-        if self.machine.is_active(state::OUT_OF_SIGHT) && well_in_view(track) {
+        let held = self.machine.is_active(state::OUT_OF_SIGHT) && held(track);
+        if !held {
+            self.ctx.held_out_of_sight_since = None;
+            return out;
+        }
+        let since = *self.ctx.held_out_of_sight_since.get_or_insert(now);
+        if well_in_view(track) || now.saturating_sub(since) >= Duration::from_secs_f64(STILL_HELD_S)
+        {
+            self.ctx.held_out_of_sight_since = None;
             out.extend(self.send("ball:in_view", Input::Track(track.clone()), now));
         }
         out
@@ -918,12 +934,17 @@ mod tests;
 /// the image (the head camera sees about 31 degrees to either side, 24 up and down).
 const WELL_IN_VIEW_DEG: f64 = 18.0;
 
-/// A ball the tracker holds (found, tracking) within [`WELL_IN_VIEW_DEG`] of the camera's axis.
+/// How long a ball reported out of view must stay held by the tracker, wherever in the image,
+/// to be followed again (s).
+const STILL_HELD_S: f64 = 1.0;
+
+/// A ball the tracker holds (found, tracking, with a centre).
+fn held(track: &BallTrack) -> bool {
+    track.found && track.state == BallTrackState::Tracking && track.has_centre_m
+}
+
+/// A ball the tracker holds within [`WELL_IN_VIEW_DEG`] of the camera's axis.
 fn well_in_view(track: &BallTrack) -> bool {
     let [x, y, z] = track.centre_m;
-    track.found
-        && track.state == BallTrackState::Tracking
-        && track.has_centre_m
-        && z > 0.0
-        && x.hypot(y).atan2(z).to_degrees() < WELL_IN_VIEW_DEG
+    held(track) && z > 0.0 && x.hypot(y).atan2(z).to_degrees() < WELL_IN_VIEW_DEG
 }

@@ -575,6 +575,36 @@ fn a_ball_still_held_well_inside_the_image_is_followed_again() {
     );
 }
 
+/// Reported at the border while the head turned, and held at the border by the head that
+/// stopped there (34 degrees off its axis): after a second held, the eyes follow it again and
+/// bring it inside (no deadlock in out_of_sight). A break in the track starts the second again.
+#[test]
+fn a_ball_held_at_the_border_for_a_second_is_followed_again() {
+    let mut g = tracking();
+    g.ball_event(&ball(BallEventKind::OutOfView), t(5.0));
+    let mut near_border = track([0.5, 0.2, 1.2]);
+    near_border.state = BallTrackState::Tracking;
+    near_border.centre_m = [0.4, 0.0, 0.6];
+    g.ball_track(&near_border, t(5.1));
+    g.ball_track(&near_border, t(5.9));
+    let mut gone = near_border.clone();
+    gone.found = false;
+    g.ball_track(&gone, t(6.0));
+    g.ball_track(&near_border, t(6.1));
+    g.ball_track(&near_border, t(7.0));
+    assert_eq!(
+        active(&g),
+        [state::RESTING, state::OUT_OF_SIGHT],
+        "held 0.9 s since the break"
+    );
+    let o = g.ball_track(&near_border, t(7.1));
+    assert_eq!(active(&g), [state::RESTING, state::TRACKING]);
+    assert!(
+        reaches(&o).iter().any(|r| r.body_part == "neck"),
+        "the neck follows the ball again"
+    );
+}
+
 #[test]
 fn commands_that_make_no_sense_now_are_explained() {
     let mut g = game();
