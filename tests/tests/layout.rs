@@ -192,3 +192,182 @@ fn the_rule_names_an_edge_between_two_processes() {
     assert_eq!(role(Path::new("/r/executive"), root), Some(Role::Process));
     assert_eq!(role(Path::new("/r/elsewhere/x"), root), None);
 }
+
+/// The crates allowed `unsafe` code (`#![allow(unsafe_code)]` over the workspace's
+/// `unsafe_code = "deny"`), each with its reason. A crate that adds `unsafe` joins this list in
+/// the same change, where a reviewer sees it.
+const UNSAFE_ALLOWED: &[(&str, &str)] = &[
+    (
+        "freenect",
+        "loads libfreenect at run time and calls its C API",
+    ),
+    ("pocketsphinx-sys-min", "PocketSphinx's C API"),
+    (
+        "robocog",
+        "the launcher's pre_exec hook: prctl(PR_SET_PDEATHSIG) in the forked child",
+    ),
+    (
+        "robocog-fuzz",
+        "a counting global allocator in the corpora test",
+    ),
+];
+
+/// The most lines a source file that is not a test may have: past it, split it by what its
+/// parts are responsible for.
+const MAX_SOURCE_LINES: usize = 800;
+
+/// The `.rs` files of a crate's folder, without those of crates nested in it (a folder with a
+/// `Cargo.toml` of its own) and without build outputs and node modules.
+fn rust_files(dir: &Path, crate_root: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            let name = e.file_name();
+            if name == "target" || name == "node_modules" || name.to_string_lossy().starts_with('.')
+            {
+                continue;
+            }
+            if p != crate_root && p.join("Cargo.toml").exists() {
+                continue;
+            }
+            rust_files(&p, crate_root, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// Whether a source line lifts the workspace's `unsafe_code = "deny"`.
+fn allows_unsafe(line: &str) -> bool {
+    let l: String = line.chars().filter(|c| !c.is_whitespace()).collect();
+    !l.starts_with("//")
+        && ["allow(", "warn(", "expect("]
+            .iter()
+            .any(|lvl| l.contains(&format!("{lvl}unsafe_code")))
+}
+
+/// The files of `dir` (a crate) whose lines lift the unsafe rule, with the first such line.
+fn unsafe_allowances(dir: &Path) -> Vec<(PathBuf, usize)> {
+    let mut files = Vec::new();
+    rust_files(dir, dir, &mut files);
+    files
+        .into_iter()
+        .filter_map(|f| {
+            let text = std::fs::read_to_string(&f).ok()?;
+            let n = text.lines().position(allows_unsafe)?;
+            Some((f, n + 1))
+        })
+        .collect()
+}
+
+#[test]
+fn only_the_listed_crates_allow_unsafe_code() {
+    let (crates, _) = workspace();
+    let mut unlisted = Vec::new();
+    let mut used = Vec::new();
+    for (name, (dir, _)) in &crates {
+        let found = unsafe_allowances(dir);
+        if found.is_empty() {
+            continue;
+        }
+        if UNSAFE_ALLOWED.iter().any(|(n, _)| n == name) {
+            used.push(name.clone());
+        } else {
+            for (f, line) in found {
+                unlisted.push(format!("{name}: {}:{line}", f.display()));
+            }
+        }
+    }
+    assert!(
+        unlisted.is_empty(),
+        "crates that allow unsafe code without being in UNSAFE_ALLOWED (tests/tests/layout.rs):\n  {}",
+        unlisted.join("\n  ")
+    );
+    // The list names no crate that no longer needs it (or that was renamed).
+    let stale: Vec<_> = UNSAFE_ALLOWED
+        .iter()
+        .filter(|(n, _)| !used.iter().any(|u| u == n))
+        .map(|(n, why)| format!("{n} ({why})"))
+        .collect();
+    assert!(
+        stale.is_empty(),
+        "UNSAFE_ALLOWED names crates that allow no unsafe code: {stale:?}"
+    );
+    // And the lint it lifts is in force in every crate: each takes the workspace's lints.
+    let root = workspace_root();
+    let workspace_toml = std::fs::read_to_string(root.join("Cargo.toml")).expect("Cargo.toml");
+    assert!(
+        workspace_toml.contains("unsafe_code = \"deny\""),
+        "the workspace no longer denies unsafe code"
+    );
+    for (name, (dir, _)) in &crates {
+        let toml = std::fs::read_to_string(dir.join("Cargo.toml")).expect("a crate's Cargo.toml");
+        let lints = toml.split("[lints]").nth(1).unwrap_or("");
+        assert!(
+            lints.trim_start().starts_with("workspace = true"),
+            "{name}'s Cargo.toml does not take the workspace's lints ([lints] workspace = true)"
+        );
+    }
+}
+
+#[test]
+fn the_unsafe_scan_finds_an_allowance_and_ignores_comments() {
+    assert!(allows_unsafe("#![allow(unsafe_code)]"));
+    assert!(allows_unsafe("#[allow( unsafe_code )]"));
+    assert!(allows_unsafe("#[expect(unsafe_code, reason = \"ffi\")]"));
+    assert!(!allows_unsafe(
+        "// #![allow(unsafe_code)] is for the listed crates"
+    ));
+    assert!(!allows_unsafe("unsafe_code = \"deny\""));
+    let dir = std::env::temp_dir().join(format!("robocog-layout-{}", std::process::id()));
+    let src = dir.join("src");
+    std::fs::create_dir_all(&src).expect("temp folder");
+    std::fs::write(src.join("lib.rs"), "//! x\n#![allow(unsafe_code)]\n").expect("write");
+    let found = unsafe_allowances(&dir);
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].1, 2);
+}
+
+/// Whether a file is test code: in a `tests/` folder of its crate, a `tests.rs` module, or in the
+/// test crates under the top-level `tests/`.
+fn is_test_file(file: &Path, crate_dir: &Path, role: Option<Role>) -> bool {
+    role == Some(Role::Tests)
+        || file.file_stem().is_some_and(|s| s == "tests")
+        || file
+            .strip_prefix(crate_dir)
+            .is_ok_and(|rel| rel.components().any(|c| c.as_os_str() == "tests"))
+}
+
+#[test]
+fn no_source_file_is_over_800_lines() {
+    let (crates, _) = workspace();
+    let mut long = Vec::new();
+    let mut seen = 0;
+    for (dir, role) in crates.values() {
+        let mut files = Vec::new();
+        rust_files(dir, dir, &mut files);
+        for f in files {
+            if is_test_file(&f, dir, *role) {
+                continue;
+            }
+            seen += 1;
+            let n = std::fs::read_to_string(&f).map_or(0, |t| t.lines().count());
+            if n > MAX_SOURCE_LINES {
+                long.push(format!("{} ({n} lines)", f.display()));
+            }
+        }
+    }
+    assert!(
+        seen > 100,
+        "only {seen} source files found: is the walk right?"
+    );
+    assert!(
+        long.is_empty(),
+        "source files over {MAX_SOURCE_LINES} lines (split them by responsibility):\n  {}",
+        long.join("\n  ")
+    );
+}

@@ -1,0 +1,261 @@
+use super::*;
+use crate::msg::vision::{Intrinsics, RgbdFrame};
+use crate::topics;
+
+async fn two_buses() -> (zenoh::Session, Bus, Bus) {
+    let (router, endpoint) = crate::router::open_router("tcp/127.0.0.1:0").await.unwrap();
+    let ns = format!("unit-bus-{}", std::process::id());
+    let args = ConnectArgs::to_router(&endpoint, &ns);
+    let a = Bus::open(&args, "unit-a").await.unwrap();
+    let b = Bus::open(&args, "unit-b").await.unwrap();
+    (router, a, b)
+}
+
+fn frame(seq_tag: u8) -> RgbdFrame {
+    let mut f = RgbdFrame::blank(640, 480, Intrinsics::default());
+    f.header.frame_id = "head_rgbd_optical_frame".into();
+    f.header.stamp_ns = 1;
+    f.rgb.fill(seq_tag);
+    f.depth_mm.fill(seq_tag.wrapping_add(1));
+    f
+}
+
+async fn next(sub: &Subscriber<RgbdFrame>) -> Received<RgbdFrame> {
+    tokio::time::timeout(Duration::from_secs(10), sub.recv_borrowed())
+        .await
+        .expect("a frame within 10 s")
+        .unwrap()
+}
+
+/// A foreign client's request that does not decode gets a `BadRequest` reply, counted in
+/// `bad_requests/<service>`, and the service goes on answering; a good raw request gets the
+/// value back.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn raw_calls_get_bad_request_for_garbage_and_the_value_otherwise() {
+    use crate::msg::std_msgs::Text;
+    use crate::raw::RawReply;
+    let (_router, server, client) = two_buses().await;
+    let _served = server
+        .serve(&topics::ECHO, |req: Text| async move { Ok(req) })
+        .await
+        .unwrap();
+    let t = Duration::from_secs(5);
+    let hello = Text {
+        text: "hello".into(),
+        ..Text::default()
+    };
+    let bytes = codec::encode(&hello, "robocog.Text").unwrap();
+    // The server's queryable reaches the client through the router a moment after `serve`
+    // returns: until then a call finds nobody (and reaches no counter).
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match client
+            .raw_call("echo", "robocog.Text", bytes.clone(), t)
+            .await
+        {
+            Err(CallError::NoServer(_)) if Instant::now() < deadline => {
+                tokio::time::sleep(Duration::from_millis(20)).await
+            }
+            other => {
+                other.unwrap();
+                break;
+            }
+        }
+    }
+    let garbage: [Vec<u8>; 4] = [
+        vec![],
+        vec![0x00, 0x01],
+        vec![0xff, 0xff, 0x00, 0x00, 1, 2, 3, 4],
+        // A good encapsulation, a header's stamp, and then its frame id's length: 2^32-1.
+        [&codec::CDR_LE_HEADER[..], &[0; 8], &[0xff; 4]].concat(),
+    ];
+    for g in garbage {
+        let reply = client
+            .raw_call("echo", "robocog.Text", g.clone(), t)
+            .await
+            .unwrap();
+        match reply {
+            RawReply::Err(e) => assert_eq!(e.code, ErrorCode::BadRequest, "{g:02x?}: {e}"),
+            RawReply::Ok(_) => panic!("{g:02x?} was answered with a value"),
+        }
+    }
+    assert_eq!(
+        server
+            .counters()
+            .counter("bad_requests/echo")
+            .load(Ordering::Relaxed),
+        4
+    );
+    let reply = client
+        .raw_call("echo", "robocog.Text", bytes, t)
+        .await
+        .unwrap();
+    let back: Text = reply.value().unwrap().unwrap();
+    assert_eq!(back.text, "hello");
+    let typed = client.call(&topics::ECHO, &hello, t).await.unwrap();
+    assert_eq!(typed.text, "hello");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frames_are_read_in_place_and_bad_payloads_are_counted_drops() {
+    let (_router, a, b) = two_buses().await;
+    let frames = b.subscriber(&topics::BENCH_FRAME).await.unwrap();
+    let publisher = a.publisher(&topics::BENCH_FRAME).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
+    let mut sent = frame(7);
+    publisher.publish(&mut sent).await.unwrap();
+    let got = next(&frames).await;
+    assert!(got.is_shm(), "a 1.5 MB frame travels in shared memory");
+    let view = got.view();
+    assert_eq!(view.header, sent.header);
+    assert!(view.is_consistent());
+    assert!(view.rgb.iter().all(|&b| b == 7) && view.depth_mm.iter().all(|&b| b == 8));
+    assert_eq!(got.to_message().unwrap(), sent);
+    assert_eq!((frames.received(), frames.shm_received()), (1, 1));
+    drop(got);
+
+    // Garbage on the topic: truncated, lengths of 2^32-1, no header. Each is a counted drop
+    // (and no multi-GiB allocation); the good frame after them comes through.
+    let good = codec::encode(&frame(1), RgbdFrame::TYPE_NAME).unwrap();
+    // The colour image's length field: the first 640 x 480 x 3 in the payload.
+    let rgb_len_at = good
+        .windows(4)
+        .position(|w| w == (640u32 * 480 * 3).to_le_bytes())
+        .unwrap();
+    let mut huge_rgb = good.clone();
+    huge_rgb[rgb_len_at..rgb_len_at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    let mut huge_id = good.clone();
+    huge_id[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+    let garbage = [
+        good[..good.len() - 1].to_vec(),
+        good[..100].to_vec(),
+        huge_rgb,
+        huge_id,
+        vec![0, 1],
+        Vec::new(),
+    ];
+    let n_bad = garbage.len() as u64;
+    for g in garbage {
+        publisher.put_encoded(g).await.unwrap();
+    }
+    let mut sent = frame(9);
+    publisher.publish(&mut sent).await.unwrap();
+    let got = next(&frames).await;
+    assert_eq!(got.view().header.seq, sent.header.seq);
+    assert_eq!(got.view().rgb[0], 9);
+    assert_eq!(frames.decode_errors(), n_bad);
+    assert_eq!(frames.received(), 2 + n_bad);
+    let counters: BTreeMap<String, u64> = b.counters().snapshot().into_iter().collect();
+    assert_eq!(counters.get("decode_errors/bench/frame"), Some(&n_bad));
+    // Both good frames came in shared memory (big garbage may too: zenoh moves large
+    // payloads into shared memory by itself); the bus counter agrees with the subscriber's.
+    assert!(frames.shm_received() >= 2);
+    assert_eq!(
+        counters.get("shm_received/bench/frame"),
+        Some(&frames.shm_received())
+    );
+    assert!(frames.try_recv_borrowed().is_none());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bus_clock_is_moved_by_the_clock_topic_before_the_messages_after_it() {
+    use crate::msg::std_msgs::{ClockTime, Text};
+    let (router, endpoint) = crate::router::open_router("tcp/127.0.0.1:0").await.unwrap();
+    let ns = format!("unit-clock-{}", std::process::id());
+    let args = ConnectArgs::to_router(&endpoint, &ns);
+    let a = Bus::open(&args, "unit-replay").await.unwrap();
+    let options = BusOptions {
+        announce: true,
+        clock: Clock::virtual_unset(),
+        ..Default::default()
+    };
+    let b = Bus::open_with(&args, "unit-follower", options)
+        .await
+        .unwrap();
+    let _follow = b.follow_clock().await.unwrap();
+    let text = b.subscriber(&topics::CHATTER).await.unwrap();
+    let clock = a.publisher(&topics::CLOCK).await.unwrap();
+    let chatter = a.publisher(&topics::CHATTER).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(!b.clock().is_started());
+    for i in 1..=50i64 {
+        let t = 1_700_000_000_000_000_000 + i * 1_000_000;
+        clock
+            .publish(&mut ClockTime {
+                time_ns: t,
+                ..Default::default()
+            })
+            .await
+            .unwrap();
+        chatter
+            .publish(&mut Text {
+                text: t.to_string(),
+                ..Default::default()
+            })
+            .await
+            .unwrap();
+    }
+    for _ in 1..=50 {
+        let m = tokio::time::timeout(Duration::from_secs(10), text.recv())
+            .await
+            .unwrap()
+            .unwrap();
+        let t: i64 = m.text.parse().unwrap();
+        assert!(
+            b.clock().now_ns() >= t,
+            "a message sent after the clock said {t} finds the clock there"
+        );
+    }
+    assert_eq!(b.clock().now_ns(), 1_700_000_000_050_000_000);
+    drop(router);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn relay_forwards_the_same_bytes_and_the_queue_drops_the_oldest() {
+    let (_router, a, b) = two_buses().await;
+    let frames = b
+        .subscriber_named::<RgbdFrame>(topics::BENCH_FRAME.name(), 2)
+        .await
+        .unwrap();
+    let back = a.subscriber(&topics::BENCH_FRAME_BACK).await.unwrap();
+    let publisher = a.publisher(&topics::BENCH_FRAME).await.unwrap();
+    let relay = b.publisher(&topics::BENCH_FRAME_BACK).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
+    // Five frames into a queue of two: the three oldest are dropped and counted.
+    for tag in 0..5 {
+        publisher.publish(&mut frame(tag)).await.unwrap();
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let dropped = b.counters().counter("queue_dropped/bench/frame");
+    while dropped.load(Ordering::Relaxed) < 3 && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert_eq!(dropped.load(Ordering::Relaxed), 3);
+    let newest = frames.latest_borrowed().expect("the newest frame");
+    assert_eq!(newest.view().rgb[0], 4);
+    assert_eq!(newest.view().header.seq, 4);
+
+    // Relayed as it is: the same payload, header untouched; an owned subscriber decodes it.
+    relay.relay(&newest).await.unwrap();
+    let echoed = tokio::time::timeout(Duration::from_secs(10), back.recv())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(echoed, newest.to_message().unwrap());
+
+    // publish_view: stamped by this publisher, same bytes as the owned frame otherwise.
+    let mut view = newest.view();
+    relay.publish_view(&mut view).await.unwrap();
+    let again = tokio::time::timeout(Duration::from_secs(10), back.recv())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(
+        again.header.seq, 0,
+        "stamped by the relay (relay() stamps nothing)"
+    );
+    assert_eq!(again.rgb, echoed.rgb);
+    assert_eq!(again.depth_mm, echoed.depth_mm);
+}
