@@ -21,6 +21,10 @@
 //!   the header), as fast as the sender can put them, counted at the receiver.
 //!
 //! The last line printed is one JSON object with every figure.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark measures and paces on the wall clock"
+)]
 
 use interfaces::msg::std_msgs::{Counter64, Ping};
 use interfaces::msg::vision::{Intrinsics, RgbdFrame, RgbdFrameView};

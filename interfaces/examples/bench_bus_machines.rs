@@ -26,6 +26,10 @@
 //!
 //! Shared memory is off everywhere (routers and clients): the namespaces share the host's
 //! memory, two machines do not. Multicast scouting (and gossip) is off everywhere.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark measures and paces on the wall clock"
+)]
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};

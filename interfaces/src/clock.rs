@@ -19,6 +19,11 @@
 //! Until it is first set it reads 0 and [`Clock::is_started`] is false; [`Clock::started`] waits
 //! for that.
 
+#![expect(
+    clippy::disallowed_methods,
+    reason = "the clock module is where the system clock is read; everything else asks it"
+)]
+
 use std::future::Future;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;

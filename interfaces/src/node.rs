@@ -465,7 +465,7 @@ pub async fn publish_diagnostics(bus: Bus) {
         tracing::warn!("cannot publish diagnostics");
         return;
     };
-    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    let mut tick = bus.clock().interval(Duration::from_secs(1));
     loop {
         tick.tick().await;
         let mut msg = Diagnostics {

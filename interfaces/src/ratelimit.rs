@@ -36,6 +36,10 @@ impl RateLimiter {
 }
 
 #[cfg(test)]
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the limiter is given wall-clock instants, as its callers give it"
+)]
 mod tests {
     use super::*;
 

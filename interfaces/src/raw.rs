@@ -133,6 +133,10 @@ impl RawSubscriber {
     }
 
     /// The next sample, or `None` after `timeout`.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a wait on the transport: a virtual clock that no one moves must not hold a reader forever"
+    )]
     pub async fn recv_timeout(&self, timeout: Duration) -> Result<Option<RawSample>, BusError> {
         match tokio::time::timeout(timeout, self.recv()).await {
             Ok(r) => r.map(Some),
@@ -416,6 +420,10 @@ pub fn decode_reply(wire: Vec<u8>) -> Result<RawReply, CodecError> {
 }
 
 #[cfg(test)]
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the tests wait for a real zenoh session"
+)]
 mod tests {
     use super::*;
     use crate::ConnectArgs;

@@ -1,6 +1,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test support: a panic is how a test fails
 //! Helpers for the process-and-bus tests: find the built binaries, give every test a fresh
 //! namespace and a router on a free port, and wait for things with a time-out, always.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 pub mod netns;
 

@@ -5,6 +5,10 @@
 //! goals on `body/joint_goal`, moves the ball with `dr/update`, and checks the outcome on
 //! `body/reach_status`, `body/joint_states` and `dr/transform` (the hand as the DR sees it, from
 //! the measured joints).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::body::{
     JointGoal, JointGoalReply, JointMode, JointRefusal, JointStates, JointTarget, ReachGoal,

@@ -1,5 +1,9 @@
 #![allow(clippy::unwrap_used)]
 //! The typed bus between real processes, over the launcher's router.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::std_msgs::Text;
 use interfaces::{Bus, CallError, ErrorCode, topics};

@@ -19,6 +19,10 @@
 //! killed (SIGKILL) in the middle of an attempt (see "Faults" below).
 //!
 //! Needs the workspace's binaries built and `espeak-ng` installed.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::command::Answer;
 use interfaces::msg::nao::{

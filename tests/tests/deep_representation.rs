@@ -1,6 +1,10 @@
 #![allow(clippy::unwrap_used)]
 //! The `deep_representation` service as a real process under `robocog launch`: changes through
 //! the bus, a SIGKILL, a restart by the launcher, and the same answers afterwards.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::dr::*;
 use interfaces::{Bus, CallError, ErrorCode, Header, topics};

@@ -4,6 +4,10 @@
 //! `vision/ball_events` and `body/reach_status`) and asserts what the Executive publishes
 //! (`executive/transitions`, `speech/say`, `body/reach`, `vision/ball_target`, `executive/log`)
 //! and serves (`executive/configuration`, `executive/propose`).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use executive::touch::{say, state};
 use interfaces::msg::body::{ReachGoal, ReachKind, ReachState, ReachStatus};

@@ -2,6 +2,10 @@
 //! Loki's eyes between real processes: the `rgbd` component (sim and playback drivers) and the
 //! `ball_tracker` component, launched from the shipped manifests on a fresh namespace; this test
 //! listens on the bus and compares the tracks with the ground truth.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTrack, BallTrackState, BallTruth};
 use interfaces::msg::vision::{Intrinsics, RgbdFrame};

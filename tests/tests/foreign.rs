@@ -11,6 +11,10 @@
 //! latest-value subscription may drop some of it unread, counted in `queue_dropped/<topic>`),
 //! every service answers `BadRequest` and goes on answering, and the game is still played: the
 //! touch game's scenario completes with no repeated command.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::liveliness::Token;
 use interfaces::msg::diag::Diagnostics;

@@ -3,6 +3,10 @@
 //! Debian's libfreenect (no device here: a clear error) and its fakenect stand-in, fed live by the
 //! simulated Kinect (`rgbd --fakenect-out`), with the ball tracker on the result
 //! (`launch/eyes_kinect.toml`), compared with the renderer's ground truth.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::tracking::{BallTrack, BallTrackState, BallTruth};
 use interfaces::msg::vision::RgbdFrame;

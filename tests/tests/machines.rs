@@ -3,6 +3,10 @@
 //! machines (root needed, as in CI), each with its own network stack, loopback and ports.
 //! `robocog launch` runs on one machine, `robocog agent` on each other; the routers join over
 //! mutual TLS with access control.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use robocog_tests::netns::{Net, Proc};
 use robocog_tests::{bin, run, scratch, unique_namespace};

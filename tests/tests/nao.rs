@@ -2,6 +2,10 @@
 //! The Nao link end to end: the bridge and the simulated field as separate processes on real
 //! UDP (loopback), commands from the bus reaching the simulated robot, world models and the
 //! game state coming back, bad datagrams counted, link loss reported.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::nao::{FieldPoint, LinkChange, NaoBody, NaoCommand};
 use interfaces::{Bus, topics};

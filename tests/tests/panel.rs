@@ -14,6 +14,10 @@
 //!
 //! Needs node, Chromium and tests/browser/node_modules: `scripts/test` installs them. Missing
 //! ones fail this test (they are not skipped).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::command::{Command, CommandSource};
 use interfaces::msg::nao::NaoBody;

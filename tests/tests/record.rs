@@ -3,6 +3,10 @@
 //! stopped with SIGTERM, the MCAP file is checked with the `mcap` crate, replayed into fresh
 //! namespaces (bytes, order and timing compared with what a test subscriber receives), and
 //! damaged copies are replayed (clear error, readable part replayed, no panic).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::std_msgs::Counter64;
 use interfaces::msg::vision::{Intrinsics, RgbdFrame};

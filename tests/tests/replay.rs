@@ -49,6 +49,10 @@
 //!   joint states it has applied by the time the tracker asks), and the same ball events.
 //!
 //! A difference fails with the first divergence and the sequences around it.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::executive::StateTransition;
 use interfaces::msg::tracking::{BallEvent, BallTrack};

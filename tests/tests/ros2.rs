@@ -6,6 +6,10 @@
 //! topic echo --ros` prints: robocog's typed value in its wire form).
 //!
 //! The decoders live in a Python venv that `scripts/test` makes (ROBOCOG_ROS2_PYTHON).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use robocog_tests::{
     Launch, read_recording, run, scratch, sigterm_and_wait, start_recorder, unique_namespace,

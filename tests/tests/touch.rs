@@ -7,6 +7,10 @@
 //!
 //! These are long (30-90 s each): real speech synthesis and recognition, 30 Hz rendering and
 //! tracking, IK and joint dynamics, all on the machine's cores.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::body::ReachState;
 use interfaces::msg::dr::TransformRequest;

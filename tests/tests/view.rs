@@ -2,6 +2,10 @@
 //! `robocog view --save`: a running graph into an `.rrd` file, checked with the `rerun` command
 //! line of the rerun-sdk Python package at the viewer crate's exact version (`rerun rrd verify`,
 //! `rerun rrd print`). `scripts/test` installs it and exports its path as `ROBOCOG_RERUN_CLI`.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::body::{JointState, JointStates};
 use interfaces::msg::executive::StateTransition;

@@ -4,6 +4,10 @@
 //! bad audio is dropped and counted; `speech_generator` speaks a request on `audio/out`.
 //!
 //! Needs the workspace's binaries built (`cargo build --release --workspace --bins`).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
 
 use interfaces::msg::command::{Answer, Command};
 use interfaces::msg::speech::{AudioChunk, Priority, SayRequest, SpeakingState};

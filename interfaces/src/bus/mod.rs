@@ -49,6 +49,10 @@ mod publisher;
 mod service;
 mod subscriber;
 #[cfg(test)]
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the tests wait for a real zenoh session"
+)]
 mod tests;
 
 use publisher::Payload;
@@ -335,6 +339,10 @@ impl Bus {
 /// `dropped` and log it (at most as often as `limiter` allows). Runs in zenoh's receive callback,
 /// which must never block: a slow consumer loses its oldest samples instead of stalling the
 /// process' other subscriptions and the publishers.
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the log limiter paces what a person reads, on the wall; it runs in zenoh's receive callback"
+)]
 pub(crate) fn offer_dropping_oldest<S>(
     tx: &flume::Sender<S>,
     evict: &flume::Receiver<S>,

@@ -94,6 +94,10 @@ impl Bus {
     /// Send one request payload (already encoded, of type `req_type`) to service `name` and
     /// return the first reply's payload: a wire reply, decoded by [`Bus::call`] or
     /// [`crate::raw::decode_reply`].
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a transport time-out, on the wall as zenoh's own query time-out is"
+    )]
     pub(crate) async fn call_payload(
         &self,
         name: &str,

@@ -72,6 +72,10 @@ impl Bus {
     /// is queued for a subscriber: a message that arrives after `clock` says T (a replay
     /// publishes the clock before the messages of that time) finds the clock at T or later. A
     /// payload that does not decode is counted like a subscriber's (`decode_errors/clock`).
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the log limiter of bad clock messages paces what a person reads, on the wall"
+    )]
     pub async fn follow_clock(&self) -> Result<ClockFollower, BusError> {
         use crate::msg::std_msgs::ClockTime;
         let name = crate::topics::CLOCK.name();
@@ -169,6 +173,10 @@ impl<T: Message> Subscriber<T> {
     }
 
     /// The next message, or `None` after `timeout`.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a wait on the transport: a virtual clock that no one moves must not hold a reader forever"
+    )]
     pub async fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, BusError> {
         match tokio::time::timeout(timeout, self.recv()).await {
             Ok(r) => r.map(Some),
@@ -245,6 +253,10 @@ impl<T: Message> Subscriber<T> {
     }
 
     /// Counts a payload that did not decode, and logs it (at most once a second).
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the log limiter paces what a person reads, on the wall"
+    )]
     fn count_decode_error(&self, e: &CodecError) {
         let n = self.decode_errors.fetch_add(1, Ordering::Relaxed) + 1;
         let mut limiter = self.limiter.lock().unwrap_or_else(|p| p.into_inner());

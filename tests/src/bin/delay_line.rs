@@ -5,6 +5,10 @@
 //! first. Its own connections carry a firewall mark so they are not redirected again. Packet
 //! loss is the kernel's (an nftables rule dropping a share of the machine's packets), so TCP
 //! retransmits as it would on a lossy network.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "the delay line delays real packets by wall-clock time"
+)]
 
 use clap::Parser;
 use std::net::SocketAddr;

@@ -1,5 +1,9 @@
 //! A component for tests of the bus and the launcher: it talks, listens, serves, crashes, hangs
 //! or ignores SIGTERM on demand (the fault nodes of the launcher tests).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "the fault node plays its faults (hangs, crashes, slow replies) in real time"
+)]
 
 use clap::{Parser, ValueEnum};
 use interfaces::msg::std_msgs::Text;
