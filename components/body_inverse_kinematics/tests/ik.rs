@@ -166,7 +166,7 @@ fn neck_gaze_puts_the_target_on_the_optical_axis_in_front() {
         assert!((perp - residual_m).abs() < 1e-9);
         // And the camera really sees it at the image centre.
         let cam_model = ik.model().camera("head_rgbd").unwrap().clone();
-        let (u, v) = cam_model.project(&p.coords).unwrap();
+        let (u, v) = cam_model.project(p.coords.into()).unwrap();
         assert!((u - cam_model.cx).abs() < 1.0 && (v - cam_model.cy).abs() < 1.0);
     }
 }

@@ -12,15 +12,9 @@ use serde::{Deserialize, Serialize};
 /// itself (effort flagged by `has_effort`, `owner` empty when nobody owns the joint).
 pub use interfaces::msg::body::{JointState, JointStates};
 
-/// Whether a joint turns or slides: fixes the units of its position (rad or m).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum JointKind {
-    /// Positions in rad, velocities in rad/s.
-    Revolute,
-    /// Positions in m, velocities in m/s.
-    Prismatic,
-}
+/// Whether a joint turns or slides, which fixes the units of its position (rad or m): the
+/// workspace's one joint kind (the drivers see only revolute and prismatic joints).
+pub use interfaces::msg::dr::JointKind;
 
 /// One joint as the drivers know it (filled from the URDF by the component).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

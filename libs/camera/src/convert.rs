@@ -12,9 +12,9 @@
 //! [`from_view`] (a frame read in place from the bus, `Subscriber::recv_borrowed`) check every
 //! size (with overflow guards) and the intrinsics before anything indexes the buffers.
 
-use crate::types::{Frame, FrameError, Intrinsics};
+use crate::types::{Frame, FrameError};
 use interfaces::Header;
-use interfaces::msg::vision::{self, RgbdFrame, RgbdFrameView};
+use interfaces::msg::vision::{RgbdFrame, RgbdFrameView};
 
 /// Largest frame accepted from the bus, pixels (a 16 Mpx camera; anything larger is garbage).
 pub const MAX_PIXELS: u64 = 1 << 24;
@@ -53,12 +53,7 @@ pub fn into_msg(frame: Frame, frame_id: &str) -> RgbdFrame {
         },
         width: frame.width,
         height: frame.height,
-        intrinsics: vision::Intrinsics {
-            fx: frame.intrinsics.fx,
-            fy: frame.intrinsics.fy,
-            cx: frame.intrinsics.cx,
-            cy: frame.intrinsics.cy,
-        },
+        intrinsics: frame.intrinsics,
         rgb: frame.rgb,
         depth_mm: depth,
     }
@@ -114,12 +109,7 @@ pub fn from_view(msg: &RgbdFrameView<'_>) -> Result<Frame, ConvertError> {
             .chunks_exact(2)
             .map(|b| u16::from_le_bytes([b[0], b[1]]))
             .collect(),
-        intrinsics: Intrinsics {
-            fx: msg.intrinsics.fx,
-            fy: msg.intrinsics.fy,
-            cx: msg.intrinsics.cx,
-            cy: msg.intrinsics.cy,
-        },
+        intrinsics: msg.intrinsics,
         timestamp_s: msg.header.stamp_s(),
     };
     frame.validate()?;
@@ -138,6 +128,7 @@ pub fn seconds_to_ns(t_s: f64) -> i64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::types::Intrinsics;
 
     fn frame() -> Frame {
         let mut f = Frame::blank(4, 3, Intrinsics::KINECT_640X480, 1_700_000_000.25);

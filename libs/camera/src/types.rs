@@ -11,60 +11,8 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Pinhole intrinsics in pixels (no distortion): a point `(x, y, z)` in the optical frame
-/// projects to `u = fx * x / z + cx`, `v = fy * y / z + cy`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Intrinsics {
-    /// Focal length along x, pixels.
-    pub fx: f64,
-    /// Focal length along y, pixels.
-    pub fy: f64,
-    /// Principal point column, pixels.
-    pub cx: f64,
-    /// Principal point row, pixels.
-    pub cy: f64,
-}
-
-impl Intrinsics {
-    /// The Kinect / Xtion / TUM "ROS default" intrinsics for 640x480: fx = fy = 525, principal
-    /// point (319.5, 239.5).
-    pub const KINECT_640X480: Intrinsics = Intrinsics {
-        fx: 525.0,
-        fy: 525.0,
-        cx: 319.5,
-        cy: 239.5,
-    };
-
-    /// Projects a point of the optical frame (m) to pixel coordinates; `None` if `z <= 0`.
-    pub fn project(&self, p: [f64; 3]) -> Option<[f64; 2]> {
-        if p[2] <= 0.0 {
-            return None;
-        }
-        Some([
-            self.fx * p[0] / p[2] + self.cx,
-            self.fy * p[1] / p[2] + self.cy,
-        ])
-    }
-
-    /// Back-projects pixel `(u, v)` at optical-axis depth `z_m` to a point of the optical frame (m).
-    pub fn back_project(&self, u: f64, v: f64, z_m: f64) -> [f64; 3] {
-        [
-            (u - self.cx) * z_m / self.fx,
-            (v - self.cy) * z_m / self.fy,
-            z_m,
-        ]
-    }
-
-    /// True when both focal lengths are finite and positive and the principal point is finite.
-    pub fn is_valid(&self) -> bool {
-        self.fx.is_finite()
-            && self.fy.is_finite()
-            && self.fx > 0.0
-            && self.fy > 0.0
-            && self.cx.is_finite()
-            && self.cy.is_finite()
-    }
-}
+/// Pinhole intrinsics in pixels (no distortion): the bus' own type.
+pub use interfaces::msg::vision::Intrinsics;
 
 /// One registered RGB-D frame: colour and depth share the pixel grid and the intrinsics.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

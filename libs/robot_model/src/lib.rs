@@ -123,26 +123,8 @@ pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
         .join(file)
 }
 
-/// Kind of a URDF joint supported by robocog.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum JointKind {
-    /// Rotation about the axis, bounded by limits (rad).
-    Revolute,
-    /// Rotation about the axis without position limits (rad).
-    Continuous,
-    /// Translation along the axis (m).
-    Prismatic,
-    /// No motion.
-    Fixed,
-}
-
-impl JointKind {
-    /// True for joints that take a value.
-    pub fn is_movable(self) -> bool {
-        !matches!(self, JointKind::Fixed)
-    }
-}
+/// Kind of a URDF joint, and a camera the model declares: the bus' own types.
+pub use interfaces::msg::dr::{CameraIntrinsics, JointKind};
 
 /// Position, velocity and effort limits of a joint (rad or m; rad/s or m/s; N m or N).
 ///
@@ -265,60 +247,6 @@ impl JointModel {
     #[inline]
     pub fn transform(&self, q: f64) -> Isometry3<f64> {
         self.origin * joint_motion(self.kind, &self.axis, q)
-    }
-}
-
-/// Pinhole intrinsics of a camera (pixels), with its valid depth range (m).
-///
-/// The camera frame is an optical frame: z forward along the optical axis, x right, y down.
-/// A point `(x, y, z)` with `z > 0` projects to `u = fx x / z + cx`, `v = fy y / z + cy`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CameraIntrinsics {
-    /// Camera name (for example `head_rgbd`).
-    pub name: String,
-    /// The optical frame (a link of the model).
-    pub frame: String,
-    /// Image width (px).
-    pub width: u32,
-    /// Image height (px).
-    pub height: u32,
-    /// Focal length along u (px).
-    pub fx: f64,
-    /// Focal length along v (px).
-    pub fy: f64,
-    /// Principal point u (px).
-    pub cx: f64,
-    /// Principal point v (px).
-    pub cy: f64,
-    /// Nearest valid depth (m).
-    pub min_range_m: f64,
-    /// Farthest valid depth (m).
-    pub max_range_m: f64,
-}
-
-impl CameraIntrinsics {
-    /// Pixel `(u, v)` of a point in the optical frame, or `None` if it is behind the camera.
-    pub fn project(&self, p: &Vector3<f64>) -> Option<(f64, f64)> {
-        if p.z <= 0.0 {
-            return None;
-        }
-        Some((self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
-    }
-
-    /// Whether a point in the optical frame is in the frustum: inside the image and within range.
-    pub fn sees(&self, p: &Vector3<f64>) -> bool {
-        if p.z < self.min_range_m || p.z > self.max_range_m {
-            return false;
-        }
-        match self.project(p) {
-            Some((u, v)) => {
-                u >= -0.5
-                    && u < f64::from(self.width) - 0.5
-                    && v >= -0.5
-                    && v < f64::from(self.height) - 0.5
-            }
-            None => false,
-        }
     }
 }
 
@@ -675,19 +603,10 @@ mod tests {
         assert_eq!((c.fx, c.fy, c.cx, c.cy), (525.0, 525.0, 319.5, 239.5));
         assert_eq!(c.frame, "head_rgbd_optical_frame");
         // A point 1 m straight ahead projects onto the principal point.
-        assert_eq!(
-            c.project(&Vector3::new(0.0, 0.0, 1.0)),
-            Some((319.5, 239.5))
-        );
-        assert!(c.sees(&Vector3::new(0.0, 0.0, 1.0)));
-        assert!(
-            !c.sees(&Vector3::new(0.0, 0.0, 0.2)),
-            "closer than min range"
-        );
-        assert!(
-            !c.sees(&Vector3::new(1.0, 0.0, 1.0)),
-            "u = 844.5 is outside 640 px"
-        );
+        assert_eq!(c.project([0.0, 0.0, 1.0]), Some((319.5, 239.5)));
+        assert!(c.sees([0.0, 0.0, 1.0]));
+        assert!(!c.sees([0.0, 0.0, 0.2]), "closer than min range");
+        assert!(!c.sees([1.0, 0.0, 1.0]), "u = 844.5 is outside 640 px");
     }
 
     #[test]

@@ -146,7 +146,7 @@ pub fn visible(g: &SceneGraph, thing: &str, camera: &str, at: At) -> Result<bool
         .as_ref()
         .ok_or_else(|| DrError::WrongEdgeKind(camera.into(), "not a camera"))?;
     let p = g.transform(camera, thing, at)?.translation.vector;
-    Ok(intr.sees(&p))
+    Ok(intr.sees(p.into()))
 }
 
 /// `reachable(item, body_part)`.
