@@ -53,6 +53,14 @@ need_speech_model() {
   fi
 }
 
+# Everything the workspace's build scripts and links need (pkg-config, the voice and camera
+# libraries).
+need_build_debs() {
+  need_debs pkg-config
+  need_voice_debs
+  need_camera_debs
+}
+
 # Make sure cargo-nextest is there (the machine image ships it; install it otherwise).
 need_nextest() {
   if ! cargo nextest --version >/dev/null 2>&1; then

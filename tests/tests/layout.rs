@@ -1,11 +1,13 @@
 //! The codebase's shape, as `cargo metadata` sees it.
 //!
-//! The rule (ARCHITECTURE.md, "Adding a component"): a process crate (every component, the
+//! The rules (ARCHITECTURE.md, "Cross-cutting rules"): a process crate (every component, the
 //! Executive, the simulators, the deep representation's service, the `robocog` tool) depends only
 //! on `interfaces`, the libraries in `libs/` and external crates, in every kind of dependency
 //! (normal, dev, build). Libraries depend only on `interfaces`, other libraries and external
 //! crates; `interfaces` on no crate of the workspace. So no process links another's code, and
-//! what two processes share is a library anyone can find in `libs/`.
+//! what two processes share is a library anyone can find in `libs/`. Beside it: only the crates
+//! in [`UNSAFE_ALLOWED`] lift the workspace's `unsafe_code = "deny"`, and no source file that is
+//! not a test passes [`MAX_SOURCE_LINES`] lines.
 #![allow(clippy::expect_used)] // a test fails by panicking
 
 use serde_json::Value;

@@ -308,7 +308,7 @@ async fn touch_a_still_ball_with_every_sound_through_a_sound_server() {
 /// noise suppressor was turned off, the echo's timing slack made to hold late as well as
 /// early, and the cut frames put at the room's level: then 20 runs of 20 beside
 /// `touch_a_moving_ball` and 8 of 8 alone, "stop" heard at 0.95-1.00.
-/// See ARCHITECTURE.md, "The robot's own voice".
+/// See docs/speech.md, "The robot's own voice and barge-in".
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stop_said_over_the_robot_silences_it_at_once_and_ends_the_game() {
     let server = SoundServer::start_room("barge-in");
