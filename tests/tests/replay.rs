@@ -1,5 +1,8 @@
 #![allow(clippy::unwrap_used)]
-//! Replay determinism of Loki's touch-the-ball game: a real game is recorded with
+//! Replay determinism of both games. Loki's touch-the-ball game (below) and the Nao coach game
+//! (at the end of this file, [`a_replayed_coach_game_takes_the_recorded_steps`]).
+//!
+//! The touch game: a real game is recorded with
 //! `robocog record`, then replayed with `robocog replay` into the Executive and the ball tracker
 //! alone (`launch/touch_replay.toml`: no joints, no IK, no camera, no speech, no simulated
 //! person), and the replayed Executive must take exactly the recorded steps.
@@ -548,4 +551,330 @@ fn assert_same_steps(what: &str, recorded: &[StepKey], replayed: &Replayed, race
             replayed.graph_output
         );
     }
+}
+
+// ----- The Nao coach game ------------------------------------------------------------------
+
+/// What `launch/coach_replay.toml` publishes itself, left out of the replay.
+const COACH_REPLAY_GRAPH_OUTPUTS: &str = "executive/transitions,executive/log,speech/say,\
+nao/command,coach/status,dr/changes,diagnostics";
+
+/// The coach replay graph's output that a faster replay waits for: the Executive's steps.
+const COACH_SYNC: &str = "executive/transitions";
+
+/// Waits (at most `timeout`) until a message from index `from` on satisfies `pred`.
+async fn wait_in<T: Clone + std::fmt::Debug>(
+    log: &Arc<Mutex<Vec<T>>>,
+    what: &str,
+    from: usize,
+    timeout: Duration,
+    pred: impl Fn(&T) -> bool,
+) -> T {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(m) = log.lock().unwrap().iter().skip(from).find(|m| pred(m)) {
+            return m.clone();
+        }
+        if Instant::now() >= deadline {
+            let v = log.lock().unwrap();
+            let tail: Vec<_> = v.iter().skip(v.len().saturating_sub(8)).collect();
+            panic!("timed out after {timeout:?} waiting for {what}; the last messages:\n{tail:#?}");
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+/// An attempt of the coach game recorded into `file`: in PLAYING, a kick at our own goal
+/// (refused), a dribble (sent), the controlled robot falling and getting up (the dribble
+/// resumed), a search for the ball, and a stop. The opponents and the teammate stand still, so
+/// nobody scores and the attempt does not end on its own; no random falls.
+async fn record_a_coach_game(dir: &Path, file: &Path) {
+    use interfaces::msg::nao::{CoachRequest, CoachStatus, FieldPoint, NaoBody, NaoCommand};
+    use interfaces::msg::speech::SayRequest;
+    let ns = unique_namespace("coachrec");
+    let (debug, gc, cmd) = (free_udp_port(), free_udp_port(), free_udp_port());
+    let sets = [
+        format!("debug_port={debug}"),
+        format!("gc_port={gc}"),
+        format!("command_port={cmd}"),
+        "panel=false".into(),
+        "falls_per_min=0".into(),
+        "pre_game_s=6".into(),
+        "passive_opponents=true".into(),
+        "passive_teammate=true".into(),
+    ];
+    let mut extra = Vec::new();
+    for s in &sets {
+        extra.extend(["--set", s.as_str()]);
+    }
+    let live = Launch::start(&repo().join("launch/nao_coach.toml"), &ns, &extra);
+    let log = dir.join("record.log");
+    let mut rec = KillOnDrop(start_recorder(
+        &live,
+        &ns,
+        file,
+        &log,
+        Duration::from_secs(30),
+    ));
+    let bus = Bus::open(&live.connect_args(), "test-coach-record")
+        .await
+        .unwrap();
+    let says = collect(bus.subscriber(&topics::SPEECH_SAY).await.unwrap());
+    let statuses = collect(bus.subscriber(&topics::COACH_STATUS).await.unwrap());
+    let requests = bus.publisher(&topics::COACH_REQUEST).await.unwrap();
+    let t = Duration::from_secs(30);
+    let said = |text: &'static str| move |s: &SayRequest| s.text == text;
+    let request = |body: NaoBody| CoachRequest {
+        command: NaoCommand {
+            body,
+            source: "test".into(),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+
+    wait_in(
+        &statuses,
+        "the Executive in PLAYING",
+        0,
+        Duration::from_secs(60),
+        |s: &CoachStatus| s.state == "coach/playing",
+    )
+    .await;
+    // A kick aimed at our own goal: refused.
+    let m = says.lock().unwrap().len();
+    requests
+        .publish(&mut CoachRequest {
+            aimed: true,
+            aim: FieldPoint {
+                x_mm: -4500.0,
+                y_mm: 0.0,
+            },
+            ..request(NaoBody::Kick)
+        })
+        .await
+        .unwrap();
+    wait_in(
+        &says,
+        "the own-goal refusal",
+        m,
+        t,
+        said("I will not kick towards our own goal."),
+    )
+    .await;
+    // A dribble; the robot falls and gets up; the dribble is resumed.
+    let m = says.lock().unwrap().len();
+    requests
+        .publish(&mut request(NaoBody::GoToBallAndDribble))
+        .await
+        .unwrap();
+    wait_in(
+        &says,
+        "the dribble",
+        m,
+        t,
+        said("Going to the ball to dribble."),
+    )
+    .await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let field = eventually("the field's pid", Duration::from_secs(10), || {
+        component_pid(&live, "spl_field")
+    });
+    let m = says.lock().unwrap().len();
+    signal(field, "USR1");
+    wait_in(
+        &says,
+        "the fall",
+        m,
+        t,
+        said("I fell. I will get up and carry on."),
+    )
+    .await;
+    wait_in(
+        &says,
+        "the resume",
+        m,
+        t,
+        said("I am up again. Resuming. Going to the ball to dribble."),
+    )
+    .await;
+    // A search for the ball, then a stop.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let m = says.lock().unwrap().len();
+    requests
+        .publish(&mut request(NaoBody::SearchTheBall))
+        .await
+        .unwrap();
+    wait_in(&says, "the search", m, t, said("Searching for the ball.")).await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let m = says.lock().unwrap().len();
+    requests.publish(&mut request(NaoBody::Stop)).await.unwrap();
+    wait_in(&says, "the stop", m, t, said("Stopping.")).await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+
+    let status_rec = sigterm_and_wait(&mut rec.0, &log);
+    let rec_log = std::fs::read_to_string(&log).unwrap();
+    assert!(status_rec.success(), "the recorder failed:\n{rec_log}");
+    eprintln!(
+        "recorded: {}; said: {:?}",
+        rec_log
+            .lines()
+            .find(|l| l.starts_with("recorded "))
+            .unwrap_or(""),
+        says.lock()
+            .unwrap()
+            .iter()
+            .map(|s| s.text.clone())
+            .collect::<Vec<_>>()
+    );
+    drop(live);
+}
+
+/// A recorded coach attempt replayed into the Executive alone (`launch/coach_replay.toml`) takes
+/// the recorded steps exactly: at the recorded rate, at 4x and as fast as possible (those two
+/// keeping step with the Executive's steps). Its timers (the robot still down, the link still
+/// lost, the teammate's age) run on the replay's clock.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_replayed_coach_game_takes_the_recorded_steps() {
+    let started = Instant::now();
+    let dir = scratch(&unique_namespace("coachreplay"));
+    let manifest = repo().join("launch/coach_replay.toml");
+    let out = run(
+        &bin("robocog"),
+        &["check".into(), manifest.display().to_string()],
+        Duration::from_secs(60),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let file = dir.join("coach.mcap");
+    let _cleanup = RemoveOnDrop(file.clone());
+    record_a_coach_game(&dir, &file).await;
+    let (_, msgs, meta) = read_recording(&file);
+    for (k, v) in &meta {
+        if k.starts_with("dropped/") {
+            assert_eq!(v, "0", "the recorder dropped messages of {k}");
+        }
+    }
+    let rec_transitions: Vec<StateTransition> = msgs
+        .iter()
+        .filter(|m| m.topic == "executive/transitions")
+        .map(|m| decode::<StateTransition>(&m.data))
+        .collect();
+    let rec_steps: Vec<StepKey> = rec_transitions.iter().map(key).collect();
+    let race = closest_race(&rec_transitions);
+    let span_s = msgs
+        .last()
+        .map(|l| (l.log_time - msgs[0].log_time) as f64 * 1e-9)
+        .unwrap_or(0.0);
+    assert_eq!(
+        rec_steps.first().map(|s| s.0),
+        Some(1),
+        "the recording must hold the Executive's first step (the recorder starts before it)"
+    );
+    for state in ["coach/playing", "coach/robot_down"] {
+        assert!(
+            rec_steps.iter().any(|s| s.3.iter().any(|a| a == state)),
+            "the recorded attempt never entered {state}: {rec_steps:#?}"
+        );
+    }
+    eprintln!("{race}");
+    eprintln!(
+        "coach recording: {} messages over {span_s:.1} s, {} steps",
+        msgs.len(),
+        rec_steps.len()
+    );
+    drop(msgs);
+
+    for (what, mode) in [
+        ("at the recorded rate", &[][..]),
+        ("at 4x", &["--rate", "4", "--sync", COACH_SYNC][..]),
+        (
+            "as fast as possible",
+            &["--as-fast-as-possible", "--sync", COACH_SYNC][..],
+        ),
+    ] {
+        let replayed =
+            replay_coach_into_a_fresh_graph(&manifest, &file, mode, span_s, rec_steps.len()).await;
+        assert_same_steps(what, &rec_steps, &replayed, &race);
+        eprintln!(
+            "coach replay {what}: {:.1} s for {span_s:.1} s recorded; {} steps identical",
+            replayed.wall_s,
+            replayed.steps.len()
+        );
+    }
+    eprintln!("test {:.0} s", started.elapsed().as_secs_f64());
+}
+
+/// Replays `file` with `mode` into a fresh `launch/coach_replay.toml` graph, with a reader of
+/// `nao/command` named `nao_bridge` (as live, so the Executive sends rather than holds), and
+/// collects its steps. Waits (bounded) for `expected_steps` steps after the replay ended.
+async fn replay_coach_into_a_fresh_graph(
+    manifest: &Path,
+    file: &Path,
+    mode: &[&str],
+    span_s: f64,
+    expected_steps: usize,
+) -> Replayed {
+    let ns = unique_namespace("coachreplay");
+    let graph = Launch::start(manifest, &ns, &[]);
+    let bus = Bus::open(&graph.connect_args(), "nao_bridge")
+        .await
+        .unwrap();
+    let _commands = collect(bus.subscriber(&topics::NAO_COMMAND).await.unwrap());
+    let steps = collect(
+        bus.subscriber(&topics::EXECUTIVE_TRANSITIONS)
+            .await
+            .unwrap(),
+    );
+    graph
+        .lines
+        .wait_for("the executive", Duration::from_secs(60), |l| {
+            l.contains("executive is up")
+        });
+    let mut args: Vec<String> = vec![
+        "replay".into(),
+        file.display().to_string(),
+        "--exclude".into(),
+        COACH_REPLAY_GRAPH_OUTPUTS.into(),
+        "--namespace".into(),
+        ns.clone(),
+        "--connect".into(),
+        graph.endpoint.clone(),
+        "--progress-s".into(),
+        "0".into(),
+    ];
+    args.extend(mode.iter().map(|a| a.to_string()));
+    let replay_started = Instant::now();
+    let out = tokio::task::block_in_place(|| {
+        run(
+            &bin("robocog"),
+            &args,
+            Duration::from_secs_f64(span_s + 120.0),
+        )
+    });
+    let wall_s = replay_started.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "the coach replay ({mode:?}) failed:\n{stderr}"
+    );
+    let until = Instant::now() + Duration::from_secs(10);
+    while steps.lock().unwrap().len() < expected_steps && Instant::now() < until {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let replayed = Replayed {
+        steps: steps.lock().unwrap().clone(),
+        tracks: Vec::new(),
+        events: Vec::new(),
+        wall_s,
+        stderr,
+        graph_output: graph.lines.all().join("\n"),
+    };
+    drop(graph);
+    replayed
 }
