@@ -10,7 +10,21 @@ export ROOT
 BIN="$CARGO_TARGET_DIR/release"
 export BIN
 
-step() { printf '\n==> %s\n' "$*" >&2; }
+# What the script is doing, and, when a step fails, which one and what might help (STEP_HINT).
+CURRENT_STEP="starting"
+STEP_HINT=""
+step() {
+  CURRENT_STEP="$*"
+  STEP_HINT=""
+  printf '\n==> %s\n' "$*" >&2
+}
+on_step_error() {
+  local rc=$?
+  printf '\nerror: this step failed (exit %s): %s\n' "$rc" "$CURRENT_STEP" >&2
+  if [ -n "$STEP_HINT" ]; then printf '%s\n' "$STEP_HINT" >&2; fi
+}
+set -E
+trap on_step_error ERR
 
 # Install Debian packages that are missing, once (idempotent, quiet when all are there).
 need_debs() {
@@ -22,6 +36,8 @@ need_debs() {
     step "installing Debian packages: ${missing[*]}"
     local sudo=""
     [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    STEP_HINT="Could not install them through apt-get (no network to the Debian mirrors, or no rights?).
+Install them by hand and run this again: $sudo apt-get install ${missing[*]}"
     $sudo apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
   fi
@@ -45,8 +61,10 @@ need_camera_debs() {
 
 # The adapted acoustic model the speech recognizer prefers (components/speech_recognition,
 # `speech_model`): built into ~/.cache/robocog/speech/ when missing or when its recipe changed
-# (about 9 minutes on two cores), otherwise left alone. Needs build_all first.
+# (about 9 minutes on two cores), otherwise left alone.
 need_speech_model() {
+  STEP_HINT="$CARGO_HINT"
+  (cd "$ROOT" && cargo build --release --workspace --quiet --bin speech_model)
   if ! "$BIN/speech_model" --check >/dev/null 2>&1; then
     step "adapting the speech recognizer's acoustic model to noisy speech (speech_model, ~9 min)"
     "$BIN/speech_model"
@@ -100,10 +118,58 @@ claim_cache() {
   echo "$ROOT" > "$mark"
 }
 
+# A build needs room: stop before it, and say so, when the build folder's disk has less than
+# 4 GB free (a full build of the workspace takes about 10 GB).
+need_disk_space() {
+  mkdir -p "$CARGO_TARGET_DIR"
+  local free_kb
+  free_kb=$(df -Pk "$CARGO_TARGET_DIR" | awk 'NR==2 {print $4}')
+  if [ "${free_kb:-0}" -lt $((4 * 1024 * 1024)) ]; then
+    printf 'error: only %s MB free on the disk of %s; a build needs at least 4 GB (a full one about 10 GB).\n' \
+      "$((${free_kb:-0} / 1024))" "$CARGO_TARGET_DIR" >&2
+    printf 'Free some space, or build elsewhere: CARGO_TARGET_DIR=/a/roomier/folder %s\n' "$0" >&2
+    exit 1
+  fi
+}
+
+CARGO_HINT="If the error names a missing library or pkg-config package, install its Debian -dev package
+(apt-get install pkg-config libpocketsphinx-dev libespeak-ng-dev libpulse-dev libfreenect-dev);
+if cargo could not download a crate, the machine cannot reach crates.io."
+
+# The launcher and the programs one graph starts, and nothing else (no benchmark, example or
+# viewer the graph does not run). Built through the workspace (`--workspace --bin ...`), so the
+# dependencies' features are unified as for every other build and their artifacts are shared
+# with `scripts/test` and `scripts/bench`. Usage: build_graph MANIFEST [--set k=v|--profile p]...
+build_graph() {
+  local manifest="$1"
+  shift
+  need_disk_space
+  prune_incremental
+  claim_cache
+  step "building the launcher (robocog, release, into $CARGO_TARGET_DIR)"
+  STEP_HINT="$CARGO_HINT"
+  (cd "$ROOT" && cargo build --release --workspace --bin robocog)
+  step "reading the programs $manifest starts"
+  local programs
+  programs="$("$BIN/robocog" check --binaries "$manifest" "$@")"
+  local bins=() p
+  for p in $programs; do
+    case "$p" in
+      */*) ;; # a program of the user's own, by path
+      *) bins+=(--bin "$p") ;;
+    esac
+  done
+  step "building the graph's programs: $(echo $programs)"
+  STEP_HINT="$CARGO_HINT"
+  (cd "$ROOT" && cargo build --release --workspace "${bins[@]}")
+}
+
 build_all() {
   prune_incremental
   claim_cache
+  need_disk_space
   step "building every robocog binary (release, into $CARGO_TARGET_DIR)"
+  STEP_HINT="$CARGO_HINT"
   (cd "$ROOT" && cargo build --release --workspace --bins --examples)
 }
 

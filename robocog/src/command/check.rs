@@ -20,6 +20,11 @@ pub struct Args {
     /// and its certificate looked for; the other machines' components are checked there.
     #[arg(long, env = "ROBOCOG_MACHINE")]
     pub machine: Option<String>,
+    /// Print the programs the graph starts, one per line (each component's `binary`, enabled
+    /// ones only, once each), and check nothing else: what a build for this graph needs
+    /// (`scripts/run` builds just these).
+    #[arg(long)]
+    pub binaries: bool,
 }
 
 /// Exit code 0 when the graph is sound, 1 with every problem listed otherwise.
@@ -31,6 +36,17 @@ pub fn execute(args: Args) -> i32 {
             return 1;
         }
     };
+    if args.binaries {
+        let programs: std::collections::BTreeSet<&str> = manifest
+            .components
+            .iter()
+            .map(|c| c.binary.as_str())
+            .collect();
+        for p in programs {
+            println!("{p}");
+        }
+        return 0;
+    }
     match crate::check::check(&manifest, !args.no_preflight, args.machine.as_deref()) {
         Ok(report) => {
             for w in &report.warnings {
