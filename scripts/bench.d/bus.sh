@@ -9,7 +9,7 @@ set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
 step "building the bus benchmarks (release)"
-cargo build --release -p interfaces --example bench_bus --example bench_bus_machines
+cargo build --release --workspace --example bench_bus --example bench_bus_machines
 
 quick=()
 for a in "$@"; do [ "$a" = "--quick" ] && quick=(--quick); done

@@ -5,6 +5,6 @@ set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
 step "building the coach benchmark (release)"
-cargo build --release -p nao_bridge --example bench_coach
+cargo build --release --workspace --example bench_coach
 step "running: bridge paths on loopback"
 exec "$BIN/examples/bench_coach" "$@"

@@ -6,7 +6,7 @@
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 step "building bench_dr (release)"
-(cd "$ROOT" && cargo build --release -p deep_representation --bin bench_dr)
+(cd "$ROOT" && cargo build --release --workspace --bin bench_dr)
 work="$CARGO_TARGET_DIR/bench/dr"
 mkdir -p "$work"
 step "running bench_dr, components as clients of the router (the default)"

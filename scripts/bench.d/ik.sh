@@ -10,7 +10,7 @@ OUT="$CARGO_TARGET_DIR/ik-bench"
 mkdir -p "$OUT"
 
 cd "$ROOT"
-cargo build --release -q -p body_inverse_kinematics --example bench_ik >&2
+cargo build --release -q --workspace --example bench_ik >&2
 "$CARGO_TARGET_DIR/release/examples/bench_ik" --n "$N" --seed 7 \
     --targets-out "$OUT/targets.json" --results-out "$OUT/ours.json" >&2
 

@@ -7,7 +7,7 @@ source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
 need_camera_debs
 step "building the Kinect driver benchmark (release)"
-cargo build --release -p rgbd --example bench_kinect
+cargo build --release --workspace --example bench_kinect
 dump="$(mktemp -d)"
 trap 'rm -rf "$dump"' EXIT
 step "writing a fakenect dump of rendered frames"

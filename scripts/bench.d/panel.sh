@@ -13,7 +13,7 @@ clicks=100
 if [ "${1:-}" = "--clicks" ] && [ -n "${2:-}" ]; then clicks="$2"; fi
 need_browser
 step "building the panel, the bridge and the launcher (release)"
-cargo build --release -p robocog -p nao_bridge -p spl_field -p command_generator -p executive
+cargo build --release --workspace --bin robocog --bin nao_bridge --bin spl_field --bin command_generator --bin executive --bin deep_representation
 free_port() { python3 -c 'import socket,sys; s=socket.socket(socket.AF_INET, getattr(socket,"SOCK_"+sys.argv[1])); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])' "$1"; }
 http_port=$(free_port STREAM)
 router_port=$(free_port STREAM)

@@ -7,7 +7,7 @@ set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
 step "building the ROS 2 bridge benchmark and robocog (release)"
-cargo build --release -p ros2_bridge --example bench_ros2 -p robocog
+cargo build --release --workspace --example bench_ros2 --bin robocog
 quick=()
 for a in "$@"; do [ "$a" = "--quick" ] && quick=(--quick); done
 # The table goes to this script's stderr as it is (tee to /dev/stderr would reopen a log file at

@@ -12,7 +12,7 @@ need_voice_debs
 work="$CARGO_TARGET_DIR/bench/speech"
 rm -rf "$work" && mkdir -p "$work/wav"
 step "building the speech benchmark (release)"
-cargo build --release -p speech_recognition --example bench_speech --bin speech_model
+cargo build --release --workspace --example bench_speech --bin speech_model
 need_speech_model
 step "robocog speech_recognition: both games' commands x 6 voices x 3 speeds in 7 conditions (clean; white noise at 20/10/5 dB SNR; reverberant rooms; babble of 3 talkers at 10 dB; a fan at 10 dB), plus out-of-grammar sentences and talk alone"
 "$BIN/examples/bench_speech" --write-wav "$work/wav" "$@" | tee "$work/ours.txt"

@@ -6,7 +6,7 @@ cd "$ROOT"
 work="$CARGO_TARGET_DIR/bench/tracker"
 mkdir -p "$work"
 step "building the tracker benchmark (release)"
-cargo build --release -p ball_tracker --example bench_tracker
+cargo build --release --workspace --example bench_tracker
 venv="$CARGO_TARGET_DIR/bench/venv"
 if [ ! -x "$venv/bin/python" ]; then
   step "creating a Python venv for the OpenCV peer ($venv)"
