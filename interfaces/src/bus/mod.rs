@@ -45,6 +45,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::Sample;
 use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder};
 
+mod fair;
 mod publisher;
 mod service;
 mod subscriber;
@@ -58,7 +59,7 @@ mod tests;
 use publisher::Payload;
 pub use publisher::{Publisher, Received};
 pub(crate) use service::WireReply;
-pub use service::{CallError, ErrorCode, ServiceError, ServiceHandle};
+pub use service::{CallError, ErrorCode, PER_CALLER_QUEUE, ServiceError, ServiceHandle};
 pub use subscriber::{ClockFollower, Subscriber};
 
 /// Payloads of this many bytes or more go through shared memory when it is enabled.

@@ -1,5 +1,6 @@
 //! Services: [`Bus::serve`], [`Bus::call`], and their typed errors.
 
+use super::fair::{self, FairQueue};
 use super::*;
 
 impl Bus {
@@ -36,33 +37,41 @@ impl Bus {
             .await?;
         let handler = Arc::new(handler);
         let bad_requests = self.inner.counters.counter(&format!("bad_requests/{name}"));
+        let counters = self.inner.counters.clone();
+        let service = name.to_string();
         let task = tokio::spawn(async move {
-            while let Ok(query) = queryable.recv_async().await {
-                let handler = handler.clone();
-                let bad_requests = bad_requests.clone();
-                tokio::spawn(async move {
-                    let request = match query.payload() {
-                        Some(p) => codec::decode::<Req>(&p.to_bytes(), Req::TYPE_NAME)
-                            .map_err(|e| ServiceError::bad_request(e.to_string())),
-                        None => Err(ServiceError::bad_request("the request has no payload")),
-                    };
-                    let reply: WireReply<Rep> = match request {
-                        Ok(req) => handler(req).await.into(),
-                        Err(e) => {
-                            bad_requests.fetch_add(1, Ordering::Relaxed);
-                            Err::<Rep, _>(e).into()
+            let mut waiting = FairQueue::new(PER_CALLER_QUEUE);
+            let slots = Arc::new(tokio::sync::Semaphore::new(MAX_IN_FLIGHT));
+            loop {
+                tokio::select! {
+                    // Take every request off zenoh's queue at once, into its caller's.
+                    biased;
+                    query = queryable.recv_async() => {
+                        let Ok(query) = query else { break };
+                        let (caller, deadline_ns) = caller_of(&query);
+                        if let Err(query) = waiting.push(&caller, (query, deadline_ns)) {
+                            counters.incr(&format!("service_busy/{service}/{caller}"));
+                            refuse_busy(&query.0, &caller).await;
                         }
-                    };
-                    match codec::encode(&reply, Rep::TYPE_NAME) {
-                        Ok(bytes) => {
-                            let key = query.key_expr().clone();
-                            if let Err(e) = query.reply(key, bytes).await {
-                                tracing::warn!("could not send a reply: {e}");
-                            }
-                        }
-                        Err(e) => tracing::error!("could not encode a reply: {e}"),
                     }
-                });
+                    slot = slots.clone().acquire_owned(), if !waiting.is_empty() => {
+                        let Ok(slot) = slot else { break };
+                        let Some((caller, (query, deadline_ns))) = waiting.pop() else {
+                            continue;
+                        };
+                        // Its caller stopped waiting: no work, no reply.
+                        if crate::clock::system_now_ns() > deadline_ns {
+                            counters.incr(&format!("service_expired/{service}/{caller}"));
+                            continue;
+                        }
+                        let handler = handler.clone();
+                        let bad_requests = bad_requests.clone();
+                        tokio::spawn(async move {
+                            let _slot = slot;
+                            answer(query, handler.as_ref(), &bad_requests).await;
+                        });
+                    }
+                }
             }
         });
         self.service_ready(name).await?;
@@ -112,6 +121,11 @@ impl Bus {
             .get(topic::service_key(self.namespace(), name))
             .payload(bytes)
             .encoding(crate::raw::encoding_for(req_type))
+            .attachment(fair::encode_caller(
+                self.component(),
+                crate::clock::system_now_ns()
+                    .saturating_add(i64::try_from(timeout.as_nanos()).unwrap_or(i64::MAX)),
+            ))
             .timeout(timeout)
             .await
             .map_err(|e| CallError::Zenoh(e.to_string()))?;
@@ -142,6 +156,73 @@ impl Bus {
                 timeout,
             }),
         }
+    }
+}
+
+/// How many requests of one service are handled at once.
+pub(super) const MAX_IN_FLIGHT: usize = 16;
+/// How many requests of one caller may wait for a service; past it, the caller is told the
+/// service is busy (and the refusal counted).
+pub const PER_CALLER_QUEUE: usize = 32;
+/// How long a request from a caller that does not say when it stops waiting may wait.
+const FOREIGN_WAIT: Duration = Duration::from_secs(10);
+
+/// Who sent `query` (its component, or [`fair::FOREIGN`]) and until when it waits for the reply.
+fn caller_of(query: &zenoh::query::Query) -> (String, i64) {
+    query
+        .attachment()
+        .and_then(|a| fair::decode_caller(&a.to_bytes()))
+        .unwrap_or_else(|| {
+            let wait = i64::try_from(FOREIGN_WAIT.as_nanos()).unwrap_or(i64::MAX);
+            (
+                fair::FOREIGN.to_string(),
+                crate::clock::system_now_ns().saturating_add(wait),
+            )
+        })
+}
+
+/// Tells a caller past its share that the service is busy.
+async fn refuse_busy(query: &zenoh::query::Query, caller: &str) {
+    let reply: WireReply<()> = WireReply::Err(ServiceError::refused(format!(
+        "busy: {caller} already has {PER_CALLER_QUEUE} requests waiting for this service"
+    )));
+    // The reply's type is the caller's to decode: an error carries no value, so any
+    // reply type reads it (the variant index, then the error).
+    if let Ok(bytes) = codec::encode(&reply, "robocog/ServiceError") {
+        let key = query.key_expr().clone();
+        let _ = query.reply(key, bytes).await;
+    }
+}
+
+/// Decodes `query`, hands it to `handler` and sends the reply (a `BadRequest` for a request
+/// that does not decode, counted).
+async fn answer<Req, Rep, F, Fut>(query: zenoh::query::Query, handler: &F, bad_requests: &AtomicU64)
+where
+    Req: Message,
+    Rep: Message,
+    F: Fn(Req) -> Fut,
+    Fut: Future<Output = Result<Rep, ServiceError>>,
+{
+    let request = match query.payload() {
+        Some(p) => codec::decode::<Req>(&p.to_bytes(), Req::TYPE_NAME)
+            .map_err(|e| ServiceError::bad_request(e.to_string())),
+        None => Err(ServiceError::bad_request("the request has no payload")),
+    };
+    let reply: WireReply<Rep> = match request {
+        Ok(req) => handler(req).await.into(),
+        Err(e) => {
+            bad_requests.fetch_add(1, Ordering::Relaxed);
+            Err::<Rep, _>(e).into()
+        }
+    };
+    match codec::encode(&reply, Rep::TYPE_NAME) {
+        Ok(bytes) => {
+            let key = query.key_expr().clone();
+            if let Err(e) = query.reply(key, bytes).await {
+                tracing::warn!("could not send a reply: {e}");
+            }
+        }
+        Err(e) => tracing::error!("could not encode a reply: {e}"),
     }
 }
 

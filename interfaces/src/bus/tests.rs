@@ -1,6 +1,7 @@
 use super::*;
 use crate::msg::vision::{Intrinsics, RgbdFrame};
 use crate::topics;
+use std::collections::BTreeMap;
 
 async fn two_buses() -> (zenoh::Session, Bus, Bus) {
     let (router, endpoint) = crate::router::open_router("tcp/127.0.0.1:0").await.unwrap();
@@ -258,4 +259,216 @@ async fn relay_forwards_the_same_bytes_and_the_queue_drops_the_oldest() {
     );
     assert_eq!(again.rgb, echoed.rgb);
     assert_eq!(again.depth_mm, echoed.depth_mm);
+}
+
+/// A router and a bus on it per name, in a namespace of their own.
+async fn buses(tag: &str, names: &[&str]) -> (zenoh::Session, Vec<Bus>) {
+    let (router, endpoint) = crate::router::open_router("tcp/127.0.0.1:0").await.unwrap();
+    let ns = format!("unit-{tag}-{}", std::process::id());
+    let args = ConnectArgs::to_router(&endpoint, &ns);
+    let mut v = Vec::new();
+    for n in names {
+        v.push(Bus::open(&args, n).await.unwrap());
+    }
+    (router, v)
+}
+
+/// Calls `echo` until it answers (at most 10 s): the service's queryable is known to `bus`'
+/// session. The handler must let one request through.
+async fn reach_echo(bus: &Bus) {
+    let req = crate::msg::std_msgs::Text {
+        text: "warm-up".into(),
+        ..Default::default()
+    };
+    let until = std::time::Instant::now() + Duration::from_secs(10);
+    while let Err(e) = bus.call(&topics::ECHO, &req, Duration::from_secs(5)).await {
+        assert!(
+            std::time::Instant::now() < until,
+            "the service never answered: {e}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Waits (at most 10 s) until counter `name` of `bus` reaches `n`.
+async fn counted(bus: &Bus, name: &str, n: u64) {
+    let until = std::time::Instant::now() + Duration::from_secs(10);
+    while bus.counters().counter(name).load(Ordering::Relaxed) < n {
+        assert!(
+            std::time::Instant::now() < until,
+            "{name} never reached {n}: {:?}",
+            bus.counters().snapshot()
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+/// A caller flooding a service waits behind its own requests only: past its share it is told
+/// the service is busy (counted per caller), and another caller's requests are served in turn
+/// with the flood's, not after its whole queue.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flooding_caller_delays_only_itself() {
+    use crate::msg::std_msgs::Text;
+    let (_router, b) = buses("fair", &["unit-server", "unit-flood", "unit-game"]).await;
+    let (server, flood, game) = (b[0].clone(), b[1].clone(), b[2].clone());
+    let gate = Arc::new(tokio::sync::Semaphore::new(0));
+    let entered = Arc::new(AtomicU64::new(0));
+    let served: Arc<Mutex<Vec<String>>> = Arc::default();
+    let _served = {
+        let (gate, entered, served) = (gate.clone(), entered.clone(), served.clone());
+        server
+            .serve(&topics::ECHO, move |req: Text| {
+                let (gate, entered, served) = (gate.clone(), entered.clone(), served.clone());
+                async move {
+                    entered.fetch_add(1, Ordering::Relaxed);
+                    gate.acquire().await.unwrap().forget();
+                    served.lock().unwrap().push(req.text.clone());
+                    Ok(req)
+                }
+            })
+            .await
+            .unwrap()
+    };
+    let mut calls = tokio::task::JoinSet::new();
+    let call = |calls: &mut tokio::task::JoinSet<_>, bus: &Bus, text: String| {
+        let bus = bus.clone();
+        calls.spawn(async move {
+            let req = Text {
+                text,
+                ..Default::default()
+            };
+            (
+                req.text.clone(),
+                bus.call(&topics::ECHO, &req, Duration::from_secs(30)).await,
+            )
+        });
+    };
+    let slots = service::MAX_IN_FLIGHT;
+    let share = PER_CALLER_QUEUE;
+    // Both callers reach the service (its queryable is known to their sessions).
+    gate.add_permits(2);
+    reach_echo(&flood).await;
+    reach_echo(&game).await;
+    served.lock().unwrap().clear();
+    let warm = entered.load(Ordering::Relaxed);
+    // The flood takes every handling slot, then fills its queue and is refused 8 times.
+    for i in 0..slots {
+        call(&mut calls, &flood, format!("flood {i}"));
+    }
+    let until = std::time::Instant::now() + Duration::from_secs(10);
+    while entered.load(Ordering::Relaxed) < warm + slots as u64 {
+        assert!(std::time::Instant::now() < until, "the slots never filled");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    for i in slots..slots + share + 8 {
+        call(&mut calls, &flood, format!("flood {i}"));
+    }
+    counted(
+        &server,
+        &format!("service_busy/echo/{}", flood.component()),
+        8,
+    )
+    .await;
+    // The game fills a queue of its own behind all that (and is refused once).
+    for i in 0..=share {
+        call(&mut calls, &game, format!("game {i}"));
+    }
+    counted(
+        &server,
+        &format!("service_busy/echo/{}", game.component()),
+        1,
+    )
+    .await;
+    gate.add_permits(slots + 2 * share);
+    let mut refused = BTreeMap::<String, usize>::new();
+    while let Some(r) = calls.join_next().await {
+        let (text, r) = r.unwrap();
+        match r {
+            Ok(rep) => assert_eq!(rep.text, text),
+            Err(CallError::Remote(e)) if e.code == ErrorCode::Refused => {
+                assert!(e.message.starts_with("busy"), "{e:?}");
+                let who = text.split(' ').next().unwrap_or("").to_string();
+                *refused.entry(who).or_default() += 1;
+            }
+            Err(e) => panic!("{text}: {e}"),
+        }
+    }
+    assert_eq!(
+        refused,
+        BTreeMap::from([("flood".to_string(), 8), ("game".to_string(), 1)])
+    );
+    // Served in turn: the game's first request right after the requests being handled when it
+    // came (give or take the handlers' own races), not after the flood's 32 queued before it.
+    let order = served.lock().unwrap().clone();
+    assert_eq!(order.len(), slots + 2 * share);
+    let first_game = order.iter().position(|t| t.starts_with("game")).unwrap();
+    assert!(
+        first_game < slots + share,
+        "the game's first request was served {first_game}th, after the flood's queue: {order:?}"
+    );
+}
+
+/// A request whose caller stopped waiting is not handled when its turn comes: counted as
+/// expired, never answered late.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_request_whose_caller_gave_up_is_dropped_not_answered_late() {
+    use crate::msg::std_msgs::Text;
+    let (_router, b) = buses("expired", &["unit-server", "unit-client"]).await;
+    let (server, client) = (b[0].clone(), b[1].clone());
+    let gate = Arc::new(tokio::sync::Semaphore::new(0));
+    let served: Arc<Mutex<Vec<String>>> = Arc::default();
+    let _served = {
+        let (gate, served) = (gate.clone(), served.clone());
+        server
+            .serve(&topics::ECHO, move |req: Text| {
+                let (gate, served) = (gate.clone(), served.clone());
+                async move {
+                    gate.acquire().await.unwrap().forget();
+                    served.lock().unwrap().push(req.text.clone());
+                    Ok(req)
+                }
+            })
+            .await
+            .unwrap()
+    };
+    gate.add_permits(1);
+    reach_echo(&client).await;
+    served.lock().unwrap().clear();
+    // Every slot taken by patient requests.
+    let mut patient = tokio::task::JoinSet::new();
+    for i in 0..service::MAX_IN_FLIGHT {
+        let client = client.clone();
+        patient.spawn(async move {
+            let req = Text {
+                text: format!("patient {i}"),
+                ..Default::default()
+            };
+            client
+                .call(&topics::ECHO, &req, Duration::from_secs(30))
+                .await
+        });
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    // One that gives up after 300 ms, waiting behind them.
+    let req = Text {
+        text: "hasty".into(),
+        ..Default::default()
+    };
+    match client
+        .call(&topics::ECHO, &req, Duration::from_millis(300))
+        .await
+    {
+        Err(CallError::Timeout { .. }) => {}
+        other => panic!("expected a time-out, got {other:?}"),
+    }
+    gate.add_permits(service::MAX_IN_FLIGHT + 1);
+    while let Some(r) = patient.join_next().await {
+        r.unwrap().unwrap();
+    }
+    let expired = format!("service_expired/echo/{}", client.component());
+    counted(&server, &expired, 1).await;
+    assert!(
+        !served.lock().unwrap().iter().any(|t| t == "hasty"),
+        "the hasty request was handled after its caller gave up"
+    );
 }
