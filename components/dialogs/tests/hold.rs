@@ -1,4 +1,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
+#![expect(
+    clippy::disallowed_methods,
+    reason = "an integration test against a real router and an in-process dialog on the system clock: its waits and time-outs are real time"
+)]
 //! A command heard while the Executive is away (restarting) is held, the person told "One moment,
 //! please.", and carried out as soon as the Executive reads `game/command` again; held too long,
 //! it is dropped and the person told so. A command the Executive may have died before acting on is

@@ -4,12 +4,12 @@
 use crate::queue::{Event, SpeechQueue};
 use audio::synth::{self, Voice};
 use audio::wav::{self, Pcm};
+use interfaces::clock::Moment;
 use interfaces::msg::speech::{AudioChunk, SayRequest, SpeakingEvent, SpeakingState};
 use interfaces::node::{Component, Interface};
 use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
 use std::time::Duration;
-use tokio::time::Instant;
 
 /// The speech generator's flags.
 #[derive(Debug, Clone, clap::Args)]
@@ -66,7 +66,8 @@ struct Current {
     req: SayRequest,
     samples: Vec<i16>,
     pos: usize,
-    started: Instant,
+    /// When its first chunk went out, on the component's clock (which paces the rest).
+    started: Moment,
 }
 
 fn event(req: &SayRequest, state: SpeakingState, duration_s: f64, detail: &str) -> SpeakingEvent {
@@ -96,6 +97,8 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let say = bus.subscriber(&topics::SPEECH_SAY).await?;
     let speaking = bus.publisher(&topics::SPEECH_SPEAKING).await?;
     let audio = bus.publisher(&topics::AUDIO_OUT).await?;
+    // The audio is paced on the component's clock, so a replay or a virtual clock drives it.
+    let clock = bus.clock().clone();
     let mut queue = SpeechQueue::new(capacity);
     let mut current: Option<Current> = None;
     loop {
@@ -145,7 +148,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                         req,
                         samples,
                         pos: 0,
-                        started: Instant::now(),
+                        started: clock.now(),
                     });
                 }
                 Err(e) => {
@@ -186,7 +189,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
             }
             _ = async {
                 match next_chunk_at {
-                    Some(t) => tokio::time::sleep_until(t).await,
+                    Some(t) => clock.sleep_until(t).await,
                     None => std::future::pending::<()>().await,
                 }
             } => {

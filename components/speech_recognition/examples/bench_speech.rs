@@ -1,4 +1,8 @@
 #![allow(clippy::unwrap_used)]
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: it measures the recognizer's compute time on the wall"
+)]
 //! Speech recognition benchmark: every command of both games (touch the ball, the Nao coach),
 //! said by 6 espeak-ng voices at 3 speeds (and pitches), in seven conditions (`corpus::Condition`):
 //! clean; white noise at 20, 10 and 5 dB SNR; reverberant rooms (RT60 0.3, 0.5, 0.8 s); three

@@ -188,6 +188,10 @@ fn main() {
                                 320
                             }) {
                                 pos += chunk.len();
+                                #[expect(
+                                    clippy::disallowed_methods,
+                                    reason = "a tuning aid measuring the decoder's compute latency"
+                                )]
                                 let t = std::time::Instant::now();
                                 let r = rec.push(chunk).unwrap();
                                 if !r.is_empty() {

@@ -7,6 +7,7 @@ use crate::confidence::ConfidenceConfig;
 use crate::model::{AcousticModel, adapted_model_dir};
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
+use interfaces::clock::Moment;
 use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
 use interfaces::msg::speech::{Utterance, VoiceActivity, VoiceState};
@@ -14,7 +15,7 @@ use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Audio chunks (100 ms each from the simulated person and the tests) that may wait for the
 /// decoder: 10 s.
@@ -188,8 +189,8 @@ pub const SUSTAINED_SPEECH_S: f64 = 0.15;
 enum Decoded {
     /// The end-pointer opened, ended or dropped an utterance (at that stream time, s).
     Activity(VoiceState, f64),
-    /// An utterance decoded, from audio that arrived then.
-    Utterance(Recognized, Instant),
+    /// An utterance decoded, from audio that arrived then (on the component's clock).
+    Utterance(Recognized, Moment),
 }
 
 /// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
@@ -228,6 +229,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
         tracing::info!("{}: {} utterances", path.display(), results.len());
         // Let the last samples leave before the session closes.
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "lets the transport send the last messages before the session closes: network time, and no clock need drive an offline --wav decode"
+        )]
         tokio::time::sleep(std::time::Duration::from_millis(200)).await;
         return Ok(());
     }
@@ -235,8 +240,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     // Bounded both ways: audio the decoder has not taken within DECODER_BACKLOG chunks is
     // dropped and counted (`audio_dropped/decoder_behind`), and the decoder waits for this
     // loop to take its results.
-    let (audio_tx, audio_rx) =
-        std::sync::mpsc::sync_channel::<(Vec<i16>, Instant)>(DECODER_BACKLOG);
+    let (audio_tx, audio_rx) = std::sync::mpsc::sync_channel::<(Vec<i16>, Moment)>(DECODER_BACKLOG);
     let (res_tx, mut res_rx) = tokio::sync::mpsc::channel::<anyhow::Result<Decoded>>(16);
     std::thread::Builder::new()
         .name("decoder".into())
@@ -340,7 +344,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     continue;
                 }
                 let Some(samples) = chunk.samples() else { continue };
-                match audio_tx.try_send((samples, Instant::now())) {
+                match audio_tx.try_send((samples, bus.clock().now())) {
                     Ok(()) => {}
                     Err(std::sync::mpsc::TrySendError::Full(_)) => {
                         let c = bus.counters().counter("audio_dropped/decoder_behind");
@@ -369,7 +373,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     }
                     Decoded::Utterance(r, arrived) => (r, arrived),
                 };
-                let msg = to_msg(&r, arrived.elapsed().as_secs_f64());
+                let msg = to_msg(&r, bus.clock().elapsed(arrived).as_secs_f64());
                 tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
                 // Why it is as sure as it is (see `confidence`): the parts of the confidence.
                 tracing::debug!(

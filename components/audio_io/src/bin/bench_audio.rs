@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: it measures the audio path's latency through a real sound server on the wall"
+)]
 //! `scripts/bench audio`: the audio path through a sound server, as the robot uses it.
 //!
 //! - **Round trip, speaker to microphone**: a click sent on `audio/out` until it comes back on
