@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: times the tracker's CPU work on the wall clock"
+)]
 //! Benchmark core of the ball tracker: renders a seeded 640x480 sequence with the `rgbd` sim (a
 //! 10 cm red ball moving at about 1 m/s, 1 m from the camera, 30 Hz), runs the tracker on every
 //! frame (`--speed-scale K` makes the ball K times faster) and prints per-frame tracker time (p50 / p99, µs) and the mean centre error (pixels, and

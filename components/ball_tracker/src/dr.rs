@@ -110,6 +110,10 @@ impl DrLink {
         }
     }
 
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the log limiter paces what a person reads, on the wall"
+    )]
     fn warn(&mut self, message: std::fmt::Arguments<'_>) {
         if let Some(suppressed) = self.warn_limit.allow(Instant::now()) {
             tracing::warn!(suppressed, "{message}");
@@ -219,6 +223,10 @@ impl DrLink {
                 Ok(_) => counters.incr("dr_updates"),
                 Err(e) => {
                     counters.incr("dr_update_errors");
+                    #[expect(
+                        clippy::disallowed_methods,
+                        reason = "the log limiter paces what a person reads, on the wall"
+                    )]
                     let allowed = limiter
                         .lock()
                         .map(|mut l| l.allow(Instant::now()))

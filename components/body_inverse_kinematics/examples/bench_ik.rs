@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: times the solver's CPU work on the wall clock"
+)]
 //! IK benchmark on Loki: random reachable targets (FK of seeded random in-limit configurations),
 //! solved from a fixed start; success rate (1 mm, 0.01 rad, within limits, checked here by FK of
 //! the returned configuration) and solve-time percentiles.

@@ -132,6 +132,10 @@ pub struct MonotonicDeadline {
 
 impl MonotonicDeadline {
     /// Expires `budget_s` seconds from now (a non-finite or negative budget expires at once).
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the solver's compute-time budget, on the wall as the CPU spends it"
+    )]
     pub fn after_s(budget_s: f64) -> Self {
         let now = std::time::Instant::now();
         let d = if budget_s.is_finite() && budget_s > 0.0 {
@@ -144,6 +148,10 @@ impl MonotonicDeadline {
 }
 
 impl Deadline for MonotonicDeadline {
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the solver's compute-time budget, on the wall as the CPU spends it"
+    )]
     fn expired(&mut self) -> bool {
         std::time::Instant::now() >= self.end
     }

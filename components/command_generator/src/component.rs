@@ -11,6 +11,7 @@ use crate::coach_status;
 use crate::panel::Outgoing;
 use crate::server::{Hub, router};
 use interfaces::bus::Counters;
+use interfaces::clock::Moment;
 use interfaces::liveliness::Readers;
 use interfaces::msg::Message;
 use interfaces::msg::command::{Answer, GameCommand};
@@ -22,7 +23,7 @@ use serde::Serialize;
 use serde_json::json;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio::task::JoinSet;
 
@@ -236,13 +237,15 @@ async fn camera_task(
 ) -> anyhow::Result<()> {
     let every = Duration::from_secs_f64(1.0 / camera_hz.clamp(0.1, 30.0));
     let counters = bus.counters().clone();
-    let mut last: Option<Instant> = None;
+    // The page's frame rate and the wait for a frame's track are on the component's clock.
+    let clock = bus.clock().clone();
+    let mut last: Option<Moment> = None;
     loop {
         let frame = frames.recv().await?;
-        if last.is_some_and(|t| t.elapsed() < every) {
+        if last.is_some_and(|t| clock.elapsed(t) < every) {
             continue;
         }
-        last = Some(Instant::now());
+        last = Some(clock.now());
         let seq = frame.header.seq;
         let mut meta = json!({
             "width": frame.width, "height": frame.height, "seq": seq,
@@ -251,15 +254,15 @@ async fn camera_task(
         let encoded = tokio::task::spawn_blocking(move || camera::to_jpeg(&frame)).await?;
         match encoded {
             Ok(jpeg) => {
-                let deadline = Instant::now() + TRACK_WAIT;
+                let deadline = clock.now() + TRACK_WAIT;
                 let track = loop {
                     if let Some(t) = tracks.get(seq) {
                         break t;
                     }
-                    if Instant::now() >= deadline {
+                    if clock.now() >= deadline {
                         break serde_json::Value::Null;
                     }
-                    tokio::time::sleep(Duration::from_millis(5)).await;
+                    clock.sleep(Duration::from_millis(5)).await;
                 };
                 meta["track"] = track;
                 hub.set_camera(every, envelope("state", "vision/rgbd", &meta), jpeg);

@@ -190,6 +190,10 @@ impl Hub {
 
     fn refuse(&self, id: u64, what: &str, error: &RequestError) -> String {
         self.counters.incr(&format!("rejected/{}", error.name()));
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "the log limiter paces what a person reads, on the wall"
+        )]
         let suppressed = lock(&self.limiter).allow(Instant::now());
         if let Some(suppressed) = suppressed {
             tracing::warn!(suppressed, "refused a panel request: {error}");
@@ -230,6 +234,11 @@ fn reply_json(id: u64, ok: bool, entry: &Entry) -> String {
 }
 
 /// The panel's clock: milliseconds since the Unix epoch (0 if the clock is before 1970).
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the times a person's page shows and ages against its browser's own Date.now(): the \
+              wall, as the browser's"
+)]
 pub fn now_ms() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -332,6 +341,10 @@ async fn websocket(
         })
 }
 
+#[expect(
+    clippy::disallowed_methods,
+    reason = "a transport time-out: how long a page's WebSocket may take a message"
+)]
 async fn send(socket: &mut WebSocket, msg: WsMessage) -> Result<(), String> {
     match tokio::time::timeout(SEND_TIMEOUT, socket.send(msg)).await {
         Ok(Ok(())) => Ok(()),
@@ -341,6 +354,11 @@ async fn send(socket: &mut WebSocket, msg: WsMessage) -> Result<(), String> {
 }
 
 /// One page: replies and the history at once, events as they come, states at their rates.
+#[expect(
+    clippy::disallowed_methods,
+    reason = "paces the sends to one page's WebSocket (transport), as its browser receives them on \
+              the wall"
+)]
 async fn connection(mut socket: WebSocket, hub: &Hub) -> Result<(), String> {
     send(&mut socket, WsMessage::Text(hub.hello().into())).await?;
     send(&mut socket, WsMessage::Text(hub.history().into())).await?;

@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "an integration test against a real WebSocket server: time-outs and pacing on the wall clock"
+)]
 #![allow(clippy::unwrap_used)]
 //! The panel's WebSocket without a bus: bad input of every kind is refused with a reason, never
 //! queued for the bus, and the server keeps serving; the token and the origin are enforced.

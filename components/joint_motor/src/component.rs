@@ -248,8 +248,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     let driver_name = driver.name();
     let joints = driver.joints().len();
     let mut motor = JointMotor::new(driver, config.lease_s)?;
-    let t0 = Instant::now();
-    let now_s = move || t0.elapsed().as_secs_f64();
+    // The motor's time (goals, leases, the simulated servos' motion) is the component's clock.
+    let clock = bus.clock().clone();
+    let t0 = clock.now();
+    let now_s = move || clock.elapsed(t0).as_secs_f64();
     if driver_name != "sim" && config.home != Home::None {
         // Real servos: move to the start posture slowly, then leave them to the clients.
         let targets: Vec<JointTarget> = motor
@@ -298,12 +300,14 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
 
     let handler_motor = motor.clone();
     let handler_counters = counters.clone();
+    let handler_now_s = now_s.clone();
     let refusal_log = Arc::new(Mutex::new(RateLimiter::new(Duration::from_secs(1))));
     let _service = bus
         .serve(&topics::BODY_JOINT_GOAL, move |req: m::JointGoal| {
             let motor = handler_motor.clone();
             let counters = handler_counters.clone();
             let refusal_log = refusal_log.clone();
+            let now_s = handler_now_s.clone();
             async move {
                 let reply = handle_goal(&motor, &req, now_s);
                 if reply.accepted {
@@ -318,6 +322,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     }
                 } else {
                     counters.incr(bus::refusal_counter(reply.refusal));
+                    #[expect(
+                        clippy::disallowed_methods,
+                        reason = "the log limiter paces what a person reads, on the wall"
+                    )]
                     let allowed = refusal_log
                         .lock()
                         .ok()
@@ -332,8 +340,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         .await?;
 
     let states = bus.publisher(&topics::BODY_JOINT_STATES).await?;
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.rate_hz));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    // Missed ticks are skipped.
+    let mut tick = bus
+        .clock()
+        .interval(Duration::from_secs_f64(1.0 / config.rate_hz));
     let mut read_log = RateLimiter::new(Duration::from_secs(1));
     loop {
         tokio::select! {
@@ -351,7 +361,12 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                     }
                     Err(e) => {
                         counters.incr("read_errors");
-                        if let Some(suppressed) = read_log.allow(Instant::now()) {
+                        #[expect(
+                            clippy::disallowed_methods,
+                            reason = "the log limiter paces what a person reads, on the wall"
+                        )]
+                        let allowed = read_log.allow(Instant::now());
+                        if let Some(suppressed) = allowed {
                             tracing::warn!(suppressed, "could not read the joints: {e}");
                         }
                     }

@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: measures real UDP and bus latency on the wall clock"
+)]
 //! `scripts/bench coach`: the bridge's two hot paths on loopback, measured end to end.
 //!
 //! In one process: a router (as `robocog launch` hosts it), the bridge's `run` on its own bus

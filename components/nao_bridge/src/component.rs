@@ -81,6 +81,10 @@ type Latest = (
 struct RateLimited(Option<Instant>);
 
 impl RateLimited {
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the log limiter paces what a person reads, on the wall"
+    )]
     fn ready(&mut self) -> bool {
         if self.0.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
             self.0 = Some(Instant::now());
@@ -175,7 +179,7 @@ async fn mirror_to_dr(
                 }
             }
         }
-        tokio::time::sleep(crate::dr::MIRROR_PERIOD).await;
+        bus.clock().sleep(crate::dr::MIRROR_PERIOD).await;
     }
 }
 
@@ -197,8 +201,10 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
     let cmd_sock = UdpSocket::bind(SocketAddr::new(unspecified, 0)).await?;
     let robot = SocketAddr::new(config.controlled, config.command_port);
 
-    let started = Instant::now();
-    let now_s = move || started.elapsed().as_secs_f64();
+    // Packet times, link time-outs and the fusion's ages are on the component's clock.
+    let clock = bus.clock().clone();
+    let started = clock.now();
+    let now_s = move || clock.elapsed(started).as_secs_f64();
     let mut robots = vec![ExpectedRobot {
         address: config.controlled,
         player_number: 2,
@@ -247,7 +253,7 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
 
     let mut debug_buf = vec![0u8; 2048];
     let mut gc_buf = vec![0u8; 2048];
-    let mut tick = tokio::time::interval(Duration::from_millis(100));
+    let mut tick = bus.clock().interval(Duration::from_millis(100));
     let mut last_counts = Vec::new();
     loop {
         tokio::select! {

@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: times the real fakenect library and the conversion on the wall clock"
+)]
 //! The freenect driver's cost per frame through Debian's fakenect: a dump of rendered frames
 //! (colour, and the depth camera's 11-bit disparities) is replayed through the real fakenect
 //! library as fast as it delivers, and each pair is timed in the two halves of the driver's

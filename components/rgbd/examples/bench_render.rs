@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: times the renderer's CPU work on the wall clock"
+)]
 //! Times the sim renderer: 640x480 frames of the default scene with a moving ball, ideal and
 //! default sensor. `cargo run -p rgbd --release --example bench_render`.
 

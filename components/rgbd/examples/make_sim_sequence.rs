@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "an offline tool: reports how long rendering and writing took on the wall clock"
+)]
 //! Renders a short sim sequence (a red 10 cm ball rolling across the table, 30 Hz, 640x480) and
 //! writes it in the TUM RGB-D layout, plus `ball.txt`: `timestamp x y z` of the ball centre in
 //! the camera optical frame (m). This made `tests/data/sim_ball_seq/`:

@@ -332,6 +332,11 @@ fn is_config_error(e: &anyhow::Error) -> bool {
 impl KinectSource {
     /// Opens the camera once (a missing library, no camera, a bad calibration file: an error
     /// now, before the component joins the bus), then keeps it streaming on its own thread.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "waits, blocking, for the camera device to appear before the component joins the \
+                  bus: device time"
+    )]
     pub fn open(config: &KinectConfig) -> anyhow::Result<KinectSource> {
         let conv = converter(config)?;
         let intrinsics = conv.intrinsics();
@@ -372,6 +377,11 @@ impl KinectSource {
 }
 
 /// The pump thread: open, stream, and reopen after a loss, until `stop` or the component's end.
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the camera's device thread: it polls and reopens the real device and reads its tilt \
+              on the wall, and stamps each frame's arrival for its age"
+)]
 fn pump(
     config: KinectConfig,
     conv: Converter,

@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: measures real latency and throughput of zenoh sessions on the wall clock"
+)]
 //! What the rmw_zenoh-compatible mode costs (`scripts/bench ros2`): one router, a publisher and
 //! a subscriber of robocog's bus, each with its own zenoh session, and the bridge in a third.
 //!

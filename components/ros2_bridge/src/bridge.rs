@@ -75,6 +75,10 @@ struct Refusals {
 }
 
 impl Refusals {
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the log limiter paces what a person reads, on the wall"
+    )]
     fn refuse(&self, counter: &str, why: &str) {
         self.counters.incr(counter);
         let mut l = self.limiters.lock().unwrap_or_else(|p| p.into_inner());

@@ -127,6 +127,12 @@ struct Logging {
     done_tx: tokio::sync::oneshot::Sender<()>,
 }
 
+#[expect(
+    clippy::disallowed_methods,
+    reason = "rerun's logging thread blocks on its queue on the wall: its once-a-second stats of \
+              what it took and its log limiter (what a person reads) are on the wall too, as the \
+              system time it stamps them with"
+)]
 fn logging_loop(ctx: Logging) {
     let Logging {
         rec,
@@ -356,7 +362,13 @@ pub async fn run(bus: Bus, settings: Settings, mut shutdown: Shutdown) -> anyhow
     // The logging thread may be stuck in rerun behind a viewer that stopped reading:
     // wait for it on channels (never on a blocking task the runtime would wait for).
     let patience = flush_timeout.map_or(Duration::from_secs(3600), |t| t + Duration::from_secs(5));
-    let report = match tokio::time::timeout(patience, report_rx).await {
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a grace for the process's exit behind a rerun viewer that stopped reading \
+                  (transport): a virtual clock that stopped must not hold the exit"
+    )]
+    let report = tokio::time::timeout(patience, report_rx).await;
+    let report = match report {
         Ok(Ok(r)) => r,
         Ok(Err(_)) => anyhow::bail!("the logging thread ended without a report"),
         Err(_) => {
@@ -383,7 +395,13 @@ pub async fn run(bus: Bus, settings: Settings, mut shutdown: Shutdown) -> anyhow
     // Then the rest goes to rerun: a file is always finished; a viewer gets the flush
     // time-out plus a margin, after which the process ends without waiting for it.
     drop(logger);
-    if tokio::time::timeout(patience, done_rx).await.is_err() {
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a grace for the process's exit behind a rerun viewer that stopped reading \
+                  (transport): a virtual clock that stopped must not hold the exit"
+    )]
+    let done = tokio::time::timeout(patience, done_rx).await;
+    if done.is_err() {
         tracing::warn!("the rerun viewer did not take the last data: stopping without it");
     }
     Ok(())
@@ -404,7 +422,8 @@ impl Sink {
 /// Ask `dr/snapshot` every 3 s while the viewer's copy of the DR wants one, and hand the reply to
 /// the logging thread through the intake (as a sample of `dr/snapshot`).
 async fn fetch_dr_snapshots(bus: interfaces::Bus, intake: Arc<Intake>, wants: Arc<AtomicBool>) {
-    let mut tick = tokio::time::interval(Duration::from_secs(3));
+    // Every 3 s of the component's clock.
+    let mut tick = bus.clock().interval(Duration::from_secs(3));
     loop {
         tick.tick().await;
         if !wants.load(Ordering::Relaxed) {

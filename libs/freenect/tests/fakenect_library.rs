@@ -1,3 +1,7 @@
+#![expect(
+    clippy::disallowed_methods,
+    reason = "an integration test: waits on real child processes and the real fakenect library on the wall clock"
+)]
 #![allow(clippy::unwrap_used)]
 //! The device API through Debian's real fakenect library (`libfreenect-dev`): frames written as
 //! a dump, or streamed live through a FIFO, come out of libfreenect's callbacks intact; a live

@@ -507,7 +507,12 @@ impl Ik {
                 self.measured.insert(j.name.clone(), j.position);
             } else {
                 self.bus.counters().incr("non_finite_joint_states");
-                if let Some(suppressed) = self.warn.allow(Instant::now()) {
+                #[expect(
+                    clippy::disallowed_methods,
+                    reason = "the log limiter paces what a person reads, on the wall"
+                )]
+                let allowed = self.warn.allow(Instant::now());
+                if let Some(suppressed) = allowed {
                     tracing::warn!(suppressed, "joint `{}` reported {}", j.name, j.position);
                 }
             }

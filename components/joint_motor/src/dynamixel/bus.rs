@@ -62,6 +62,10 @@ impl Bus {
 
     /// The next valid status packet from an id accepted by `wanted`, waiting at most the timeout;
     /// `None` if none came. Corrupt and unexpected packets are counted and skipped.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a serial-line time-out: how long the servos may take to answer on the real bus"
+    )]
     fn receive(&mut self, wanted: impl Fn(u8) -> bool) -> Result<Option<Packet>, JointError> {
         let deadline = Instant::now() + self.timeout;
         loop {

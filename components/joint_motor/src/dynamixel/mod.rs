@@ -193,6 +193,10 @@ impl JointDriver for DynamixelDriver {
 }
 
 #[cfg(test)]
+#[expect(
+    clippy::disallowed_methods,
+    reason = "the tests wait on the simulated servo chain's real thread behind a pseudo-terminal"
+)]
 mod tests {
     use super::*;
     use crate::error::LimitKind;

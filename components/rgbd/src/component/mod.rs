@@ -8,15 +8,15 @@
 //!   just published (same stamp, `frame_seq` = the frame's sequence number), in the optical
 //!   frame and the world; none for a frame without a ball (`--ball-from-topic`, ball absent).
 //!
-//! Subscribes (sim driver, with the flags above): `body/joint_states` ([`JointStates`]) and
-//! `sim/ball` ([`SimBall`]), the newest of each before every frame. Joint values that are not
+//! Subscribes (sim driver, with the flags above): `body/joint_states` ([`JointStates`](interfaces::msg::body::JointStates)) and
+//! `sim/ball` ([`SimBall`](interfaces::msg::tracking::SimBall)), the newest of each before every frame. Joint values that are not
 //! finite are ignored and counted (`joint_states_non_finite`), values beyond the URDF limits
 //! clamped and counted (`joint_states_clamped`); chain joints a state does not name keep their
 //! value (logged once); frames rendered while the newest joint state is older than
 //! [`camera::world::MAX_JOINT_STATE_AGE_NS`] are counted (`joint_states_stale_frames`) and logged
 //! at most once a second.
 //!
-//! Drivers (`--driver`), both behind the library's [`RgbdDriver`] trait:
+//! Drivers (`--driver`), both behind the library's [`RgbdDriver`](camera::RgbdDriver) trait:
 //! - `sim`: renders a simulated table scene at `--fps` (default 30 Hz) on the bus clock.
 //!   - The camera: `--camera-pose` (fixed; default 1.5 m high, 30° down; see [`CameraPose`]), or
 //!     with `--camera-from-joints` the pose of the URDF's optical frame `--frame-id` computed
@@ -25,13 +25,13 @@
 //!     deep representation finds it). Before the first joint state the camera is at the URDF's
 //!     rest posture (all joints 0, clamped into their limits), which the log says once.
 //!   - The ball: scripted by `--scenario` over the lab scene (a table 1.2 m ahead), or with
-//!     `--ball-from-topic` the simulated world's ball on `sim/ball` ([`SimBall`]) over the
+//!     `--ball-from-topic` the simulated world's ball on `sim/ball` ([`SimBall`](interfaces::msg::tracking::SimBall)) over the
 //!     game's scene ([`camera::sim::Scene::game`]: a table 0.4 to 1.1 m ahead at 0.75 m, a
 //!     textured wall), drawn with the person's hand and forearm when `held`; no ball before the
 //!     first message nor while `present = false`.
 //!   - Stamps: the bus clock when the frame is rendered; with `--camera-from-joints`, the stamp
 //!     of the joint state the pose came from while joint states keep coming (so the DR's
-//!     transform at the frame's stamp is the pose it was rendered from; see [`frame_stamp_ns`]).
+//!     transform at the frame's stamp is the pose it was rendered from; see [`frame_stamp_ns`](camera::world::frame_stamp_ns)).
 //! - `playback`: a TUM RGB-D folder (`--sequence DIR`), paced by the recorded timestamps divided
 //!   by `--rate` (2 = twice as fast; 0 = as fast as the subscribers take them), once or with
 //!   `--loop` forever. Frames keep their recorded stamps (so a track can be compared with a
@@ -39,26 +39,29 @@
 //!   folder stops the component before it joins the bus, with the error naming file and line.
 //!   `--wait-for-subscriber-s` holds the first frame until something subscribes to `vision/rgbd`.
 
+mod kinect_loop;
+mod playback;
+mod sim;
+
+pub use sim::SimWorld;
+
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use interfaces::msg::body::JointStates;
-use interfaces::msg::tracking::{BallTruth, SimBall};
+use interfaces::clock::{Clock, Moment};
+use interfaces::msg::tracking::BallTruth;
 use interfaces::msg::vision::{CameraStatus, RgbdFrame};
 use interfaces::node::Interface;
-use interfaces::ratelimit::RateLimiter;
-use interfaces::{Bus, Header, Shutdown, topics};
+use interfaces::{Bus, Shutdown, topics};
 use robot_model::RobotModel;
 use robot_model::find_model;
 
-use crate::kinect::{DepthMode, Event, KinectConfig, KinectSim, KinectSource, LibraryChoice};
-use camera::RgbdDriver;
-use camera::convert::{into_msg, seconds_to_ns};
+use crate::kinect::{DepthMode, KinectConfig, KinectSim, KinectSource, LibraryChoice};
 use camera::playback::{OpenOptions, PlaybackDriver, PlaybackMode, TumSequence};
-use camera::scenario::{BallGroundTruth, CameraPose, Scenario, ScenarioSim};
+use camera::scenario::{CameraPose, Scenario, ScenarioSim};
 use camera::sim::SensorModel;
-use camera::world::{HeadCamera, RobotPose, WorldSim, frame_stamp_ns, joint_state_fresh};
+use camera::world::{HeadCamera, RobotPose, WorldSim};
 
 /// Which driver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -231,38 +234,6 @@ pub fn interface(config: &Config) -> Interface {
     }
 }
 
-/// The simulated world a sim frame is rendered from.
-#[derive(Debug)]
-pub enum SimWorld {
-    /// The lab scene with the ball moved by a scenario.
-    Scenario(Box<ScenarioSim>),
-    /// The game's scene with the ball from `sim/ball`.
-    Topic(Box<WorldSim>),
-}
-
-impl SimWorld {
-    fn set_world_from_optical(&mut self, pose: nalgebra::Isometry3<f64>) {
-        match self {
-            SimWorld::Scenario(s) => s.set_world_from_optical(pose),
-            SimWorld::Topic(s) => s.set_world_from_optical(pose),
-        }
-    }
-
-    fn truth(&self) -> Option<BallGroundTruth> {
-        match self {
-            SimWorld::Scenario(s) => s.truth(),
-            SimWorld::Topic(s) => s.truth(),
-        }
-    }
-
-    fn next_frame(&mut self, now_s: f64) -> Result<Option<camera::Frame>, camera::DriverError> {
-        match self {
-            SimWorld::Scenario(s) => s.next_frame(now_s),
-            SimWorld::Topic(s) => s.next_frame(now_s),
-        }
-    }
-}
-
 /// A driver ready to run.
 #[derive(Debug)]
 pub enum Source {
@@ -425,102 +396,13 @@ impl Source {
     }
 }
 
-/// The sim's inputs from the bus and what to say about them.
-struct SimInputs {
-    joints: Option<interfaces::Subscriber<JointStates>>,
-    balls: Option<interfaces::Subscriber<SimBall>>,
-    first_joint_state: bool,
-    missing_reported: bool,
-    warn_limit: RateLimiter,
-}
-
-impl SimInputs {
-    /// Applies the newest joint state (if any since the last call) to `head`; its stamp.
-    fn update_head(&mut self, bus: &Bus, head: &mut HeadCamera) -> Option<i64> {
-        let states = self.joints.as_ref()?.latest()?;
-        let report = head.apply(&states);
-        if self.first_joint_state {
-            self.first_joint_state = false;
-            let p = head.world_from_optical().translation.vector;
-            tracing::info!(
-                "first joint state (driver {:?}): the camera now follows body/joint_states, at \
-                 ({:.3}, {:.3}, {:.3}) m in the world",
-                states.driver,
-                p.x,
-                p.y,
-                p.z
-            );
-        }
-        if !report.missing.is_empty() && !self.missing_reported {
-            self.missing_reported = true;
-            tracing::warn!(
-                "body/joint_states does not name {}: they stay at their previous value (the rest \
-                 posture until named)",
-                report.missing.join(", ")
-            );
-        }
-        let counters = bus.counters();
-        if !report.non_finite.is_empty() || !report.clamped.is_empty() {
-            if !report.non_finite.is_empty() {
-                counters.incr("joint_states_non_finite");
-            }
-            if !report.clamped.is_empty() {
-                counters.incr("joint_states_clamped");
-            }
-            if let Some(suppressed) = self.warn_limit.allow(std::time::Instant::now()) {
-                tracing::warn!(
-                    suppressed,
-                    "joint state seq {}: ignored non-finite {:?}, clamped into the URDF limits {:?}",
-                    states.header.seq,
-                    report.non_finite,
-                    report.clamped
-                );
-            }
-        }
-        Some(states.header.stamp_ns)
-    }
-}
-
-fn truth_msg(t: &BallGroundTruth, stamp_ns: i64, frame_seq: u64, frame_id: &str) -> BallTruth {
-    BallTruth {
-        header: Header {
-            stamp_ns,
-            seq: 0,
-            frame_id: frame_id.to_string(),
-        },
-        frame_seq,
-        centre_m: t.centre_camera_m,
-        centre_world_m: t.centre_world_m,
-        diameter_m: t.diameter_m,
-        in_view: t.in_view,
-    }
-}
-
-/// Queue depth of the sim's inputs: joint states at 100 Hz or more are drained every frame.
-const INPUT_QUEUE: usize = 64;
-
-async fn wait_for_subscriber(bus: &Bus, wait_s: f64, shutdown: &mut Shutdown) {
-    if wait_s <= 0.0 {
-        return;
-    }
-    let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(wait_s);
-    while tokio::time::Instant::now() < deadline && !shutdown.is_requested() {
-        let graph = bus
-            .graph(Duration::from_millis(300))
-            .await
-            .unwrap_or_default();
-        let found = graph.iter().any(|t| {
-            matches!(t, interfaces::liveliness::Token::Subscriber { topic, .. }
-                if topic == topics::VISION_RGBD.name())
-        });
-        if found {
-            // The subscription reaches the router just before its token: a moment more.
-            tokio::time::sleep(Duration::from_millis(100)).await;
-            return;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    tracing::warn!("no subscriber of vision/rgbd after {wait_s} s; playing anyway");
+/// Where the frames go: the bus (frames, the camera's state, the sim's ground truth), or with
+/// `--fakenect-out` the simulated Kinect.
+struct Outputs {
+    kinect_sim: Option<KinectSim>,
+    frames: Option<interfaces::Publisher<RgbdFrame>>,
+    truths: Option<interfaces::Publisher<BallTruth>>,
+    status: Option<StatusOut>,
 }
 
 /// Runs the component until the source is exhausted (playback without `--loop`) or shutdown.
@@ -530,7 +412,7 @@ pub async fn run(
     source: Source,
     mut shutdown: Shutdown,
 ) -> anyhow::Result<()> {
-    let mut kinect_sim = match (&config.fakenect_out, &source) {
+    let kinect_sim = match (&config.fakenect_out, &source) {
         (Some(dir), Source::Sim { .. }) => Some(KinectSim::create(
             dir,
             freenect::kinect::DepthCalibration::default(),
@@ -548,6 +430,7 @@ pub async fn run(
     let mut status = match &frames {
         Some(_) => Some(StatusOut::new(
             bus.publisher(&topics::VISION_CAMERA_STATUS).await?,
+            bus.clock().clone(),
         )),
         None => None,
     };
@@ -559,302 +442,29 @@ pub async fn run(
     if let Some(s) = status.as_mut() {
         s.status.driver = driver_name.into();
     }
-    let clock = bus.clock().clone();
-    let now_s = move || clock.now_ns() as f64 * 1e-9;
+    let out = Outputs {
+        kinect_sim,
+        frames,
+        truths,
+        status,
+    };
     match source {
         Source::Sim {
-            mut world,
-            mut head,
+            world,
+            head,
             period_s,
-        } => {
-            let mut inputs = SimInputs {
-                joints: match head {
-                    Some(_) => Some(
-                        bus.subscriber_named::<JointStates>(
-                            topics::BODY_JOINT_STATES.name(),
-                            INPUT_QUEUE,
-                        )
-                        .await?,
-                    ),
-                    None => None,
-                },
-                balls: if config.ball_from_topic {
-                    Some(
-                        bus.subscriber_named::<SimBall>(topics::SIM_BALL.name(), INPUT_QUEUE)
-                            .await?,
-                    )
-                } else {
-                    None
-                },
-                first_joint_state: true,
-                missing_reported: false,
-                warn_limit: RateLimiter::new(Duration::from_secs(1)),
-            };
-            let mut last_ns = 0i64;
-            let mut joint_stamp: Option<i64> = None;
-            let mut tick = tokio::time::interval(Duration::from_secs_f64(period_s));
-            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-            loop {
-                tokio::select! {
-                    biased;
-                    _ = shutdown.wait() => return Ok(()),
-                    _ = tick.tick() => {}
-                }
-                if let Some(h) = head.as_mut() {
-                    if let Some(t) = inputs.update_head(&bus, h) {
-                        joint_stamp = Some(t);
-                    }
-                    world.set_world_from_optical(h.world_from_optical());
-                }
-                if let (Some(sub), SimWorld::Topic(w)) = (&inputs.balls, &mut world)
-                    && let Some(ball) = sub.latest()
-                {
-                    w.set_ball(ball);
-                }
-                let now_ns = bus.clock().now_ns();
-                if let Some(t) = joint_stamp
-                    && !joint_state_fresh(now_ns, t)
-                {
-                    bus.counters().incr("joint_states_stale_frames");
-                    if let Some(suppressed) = inputs.warn_limit.allow(std::time::Instant::now()) {
-                        tracing::warn!(
-                            suppressed,
-                            "the newest joint state is {:.2} s old (stalled publisher, or another \
-                             clock): frames are stamped with the bus clock, the camera pose held",
-                            (now_ns - t) as f64 * 1e-9
-                        );
-                    }
-                }
-                let stamp_ns = frame_stamp_ns(now_ns, joint_stamp, last_ns);
-                last_ns = stamp_ns;
-                let Some(frame) = world.next_frame(stamp_ns as f64 * 1e-9)? else {
-                    return Ok(());
-                };
-                if let Some(sim) = kinect_sim.as_mut() {
-                    // The simulated Kinect: the frame goes through fakenect to the driver.
-                    let pose = head
-                        .as_ref()
-                        .map(HeadCamera::world_from_optical)
-                        .unwrap_or_else(|| config.camera_pose.world_from_optical());
-                    let up = pose.rotation.inverse() * nalgebra::Vector3::z() * 9.80665;
-                    let offer = sim.offer(&frame, now_ns as f64 * 1e-9, [up.x, up.y, up.z])?;
-                    if offer == freenect::fakenect::Offer::ReaderBehind {
-                        bus.counters().incr("kinect_sim_dropped");
-                    }
-                    if let (Some(p), Some(t), freenect::fakenect::Offer::Sent) =
-                        (&truths, world.truth(), offer)
-                    {
-                        let mut truth = truth_msg(&t, stamp_ns, sim.sent, &config.frame_id);
-                        p.publish(&mut truth).await?;
-                    }
-                    continue;
-                }
-                let Some(frames) = &frames else {
-                    continue;
-                };
-                if let Some(s) = status.as_mut() {
-                    s.frame(true, "the simulated camera").await?;
-                }
-                let mut msg = into_msg(frame, &config.frame_id);
-                msg.header.stamp_ns = stamp_ns;
-                frames.publish(&mut msg).await?;
-                if let (Some(p), Some(t)) = (&truths, world.truth()) {
-                    p.publish(&mut truth_msg(
-                        &t,
-                        msg.header.stamp_ns,
-                        msg.header.seq,
-                        &msg.header.frame_id,
-                    ))
-                    .await?;
-                }
-            }
-        }
+        } => sim::run_sim(&bus, &config, world, head, period_s, out, &mut shutdown).await,
         Source::Playback {
-            mut driver,
+            driver,
             rate,
             restamp,
-        } => {
-            wait_for_subscriber(&bus, config.wait_for_subscriber_s, &mut shutdown).await;
-            let mut prev: Option<(f64, tokio::time::Instant)> = None;
-            let mut published = 0u64;
-            loop {
-                if shutdown.is_requested() {
-                    return Ok(());
-                }
-                let Some(frame) = driver.next_frame(now_s())? else {
-                    tracing::info!("end of the sequence after {published} frames");
-                    return Ok(());
-                };
-                // Pace: the recorded gap since the previous frame, scaled by the rate, measured
-                // from when the previous frame was due (so publishing time does not accumulate).
-                if let Some((prev_s, prev_due)) = prev
-                    && rate > 0.0
-                {
-                    let gap_s = driver.mode().delay_s(prev_s, frame.timestamp_s) / rate;
-                    let due = prev_due + Duration::from_secs_f64(gap_s.min(3600.0));
-                    tokio::select! {
-                        biased;
-                        _ = shutdown.wait() => return Ok(()),
-                        _ = tokio::time::sleep_until(due) => {}
-                    }
-                    prev = Some((frame.timestamp_s, due));
-                } else {
-                    prev = Some((frame.timestamp_s, tokio::time::Instant::now()));
-                }
-                let mut msg = into_msg(frame, &config.frame_id);
-                if restamp {
-                    msg.header.stamp_ns = seconds_to_ns(now_s());
-                }
-                if let Some(frames) = &frames {
-                    frames.publish(&mut msg).await?;
-                }
-                if let Some(s) = status.as_mut() {
-                    s.frame(true, "a recorded sequence").await?;
-                }
-                published += 1;
-            }
-        }
+        } => playback::run_playback(&bus, &config, driver, rate, restamp, out, &mut shutdown).await,
         Source::Kinect(mut src) => {
-            let (Some(frames), Some(mut status)) = (frames, status) else {
+            let (Some(frames), Some(mut status)) = (out.frames, out.status) else {
                 anyhow::bail!("--fakenect-out needs --driver sim");
             };
-            run_kinect(&bus, &config, &mut src, &frames, &mut status, &mut shutdown).await
-        }
-    }
-}
-
-/// Share of the pixels below which a frame counts as having no depth, or above which as
-/// saturated.
-const FRAME_SHARE: usize = 20;
-
-/// The freenect driver's loop: its thread's frames onto the bus, its losses and returns on
-/// `diagnostics` and in the log.
-async fn run_kinect(
-    bus: &Bus,
-    config: &Config,
-    src: &mut KinectSource,
-    frames: &interfaces::Publisher<RgbdFrame>,
-    status: &mut StatusOut,
-    shutdown: &mut Shutdown,
-) -> anyhow::Result<()> {
-    let counters = bus.counters().clone();
-    let dropped = counters.counter("camera_frames_dropped");
-    let timeout = Duration::from_secs_f64(config.frame_timeout_s);
-    let mut warn_limit = RateLimiter::new(Duration::from_secs(5));
-    let (mut stalled, mut opened_once, mut tilt_logged, mut frames_seen) =
-        (false, false, false, 0u64);
-    loop {
-        let event = tokio::select! {
-            biased;
-            _ = shutdown.wait() => return Ok(()),
-            e = tokio::time::timeout(timeout, src.events.recv()) => e,
-        };
-        dropped.store(
-            src.dropped.load(std::sync::atomic::Ordering::Relaxed),
-            std::sync::atomic::Ordering::Relaxed,
-        );
-        match event {
-            Err(_) => {
-                if !stalled && opened_once {
-                    stalled = true;
-                    counters.incr("camera_stalled");
-                    status.status.losses += 1;
-                    tracing::warn!(
-                        "no frame from the camera for {:.1} s (unplugged, or its USB link \
-                         stalled): waiting for it",
-                        timeout.as_secs_f64()
-                    );
-                }
-                if stalled {
-                    status
-                        .change(false, "no frame from the camera: waiting for it")
-                        .await?;
-                }
-            }
-            Ok(None) => anyhow::bail!("the camera thread ended"),
-            Ok(Some(Event::Frame(frame, at, stats))) => {
-                if stalled {
-                    stalled = false;
-                    tracing::info!("frames from the camera again");
-                }
-                frames_seen += 1;
-                counters.incr("camera_frames");
-                let n = frame.pixel_count();
-                if stats.depth_pixels * FRAME_SHARE < n {
-                    counters.incr("frames_no_depth");
-                    if let Some(suppressed) = warn_limit.allow(std::time::Instant::now()) {
-                        tracing::warn!(
-                            suppressed,
-                            "frame {frames_seen}: depth on {} of {n} pixels only (too near, too \
-                             far, sunlight, or a covered projector)",
-                            stats.depth_pixels
-                        );
-                    }
-                }
-                if stats.saturated_pixels * FRAME_SHARE > n {
-                    counters.incr("frames_saturated");
-                }
-                let age_ns = i64::try_from(at.elapsed().as_nanos()).unwrap_or(0);
-                let mut msg = into_msg(*frame, &config.frame_id);
-                msg.header.stamp_ns = bus.clock().now_ns() - age_ns;
-                frames.publish(&mut msg).await?;
-                let detail = status.streaming_detail.clone();
-                status.frame(true, &detail).await?;
-            }
-            Ok(Some(Event::Opened { description })) => {
-                status.streaming_detail = description.clone();
-                if opened_once {
-                    counters.incr("camera_reopened");
-                    tracing::info!("camera back: {description}");
-                } else {
-                    tracing::info!(
-                        "streaming {description}; intrinsics fx {:.1} fy {:.1} cx {:.1} cy {:.1}",
-                        src.intrinsics.fx,
-                        src.intrinsics.fy,
-                        src.intrinsics.cx,
-                        src.intrinsics.cy
-                    );
-                }
-                opened_once = true;
-            }
-            Ok(Some(Event::Lost { reason })) => {
-                counters.incr("camera_lost");
-                if !stalled {
-                    status.status.losses += 1;
-                }
-                stalled = true;
-                tracing::warn!("camera lost: {reason}; reopening it every second");
-                status
-                    .change(false, &format!("camera lost: {reason}"))
-                    .await?;
-            }
-            Ok(Some(Event::StillAway { reason })) => {
-                tracing::warn!("camera not back yet: {reason}");
-            }
-            Ok(Some(Event::Tilt(t))) => {
-                let level = if tilt_logged {
-                    tracing::Level::DEBUG
-                } else {
-                    tracing::Level::INFO
-                };
-                tilt_logged = true;
-                if level == tracing::Level::INFO {
-                    tracing::info!(
-                        "tilt motor {:.1} deg (status {}), accelerometer ({:.2}, {:.2}, {:.2}) m/s2",
-                        t.angle_deg,
-                        t.status,
-                        t.accel_mps2[0],
-                        t.accel_mps2[1],
-                        t.accel_mps2[2]
-                    );
-                } else {
-                    tracing::debug!(
-                        "tilt motor {:.1} deg, accelerometer {:?} m/s2",
-                        t.angle_deg,
-                        t.accel_mps2
-                    );
-                }
-            }
+            kinect_loop::run_kinect(&bus, &config, &mut src, &frames, &mut status, &mut shutdown)
+                .await
         }
     }
 }
@@ -863,15 +473,18 @@ async fn run_kinect(
 struct StatusOut {
     publisher: interfaces::Publisher<CameraStatus>,
     status: CameraStatus,
-    last: Option<std::time::Instant>,
+    /// When it was last published, on the component's clock.
+    last: Option<Moment>,
+    clock: Clock,
     /// What streams, said while frames come.
     streaming_detail: String,
 }
 
 impl StatusOut {
-    fn new(publisher: interfaces::Publisher<CameraStatus>) -> StatusOut {
+    fn new(publisher: interfaces::Publisher<CameraStatus>, clock: Clock) -> StatusOut {
         StatusOut {
             publisher,
+            clock,
             status: CameraStatus::default(),
             last: None,
             streaming_detail: String::new(),
@@ -889,9 +502,9 @@ impl StatusOut {
         }
         let due = self
             .last
-            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+            .is_none_or(|t| self.clock.elapsed(t) >= Duration::from_secs(1));
         if changed || due {
-            self.last = Some(std::time::Instant::now());
+            self.last = Some(self.clock.now());
             self.status.header.stamp_ns = 0;
             self.publisher.publish(&mut self.status).await?;
         }
