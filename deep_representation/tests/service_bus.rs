@@ -2,6 +2,10 @@
 //! and a client, each its own session. Every service, its typed errors, and that a fork leaves the
 //! live graph alone.
 #![allow(clippy::expect_used)] // a test fails by panicking
+#![expect(
+    clippy::disallowed_methods,
+    reason = "an integration test over a real zenoh router: it waits on the wall for the transport"
+)]
 
 use std::time::Duration;
 

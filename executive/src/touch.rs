@@ -57,17 +57,20 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use interfaces::Header;
-use interfaces::msg::body::{
-    JointGoal, JointMode, JointTarget, ReachGoal, ReachKind, ReachState, ReachStatus,
-};
+use interfaces::msg::body::{JointGoal, ReachGoal, ReachState, ReachStatus};
 use interfaces::msg::command::{Command, Game, GameCommand};
 use interfaces::msg::speech::Priority;
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack, BallTrackState};
 use interfaces::outbox::Handled;
 
-use crate::engine::{Builder, Context, Definition, DefinitionError, Event, Machine, Step};
-use crate::settings::{JointRest, TouchSettings};
+use crate::engine::{DefinitionError, Event, Machine, Step};
+use crate::settings::TouchSettings;
+
+mod context;
+mod definition;
+pub use crate::game_log::LogLine;
+pub use context::TouchCtx;
+pub use definition::definition;
 
 /// The machine's name (the `machine` field of the Executive's messages).
 pub const MACHINE: &str = "touch_the_ball";
@@ -148,13 +151,6 @@ pub enum Act {
     Finish,
 }
 
-fn normal(text: &'static str) -> Act {
-    Act::Say(text, Priority::Normal)
-}
-fn high(text: &'static str) -> Act {
-    Act::Say(text, Priority::High)
-}
-
 /// What an event carries.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub enum Input {
@@ -164,16 +160,6 @@ pub enum Input {
     Ball(BallEvent),
     Track(BallTrack),
     Reach(ReachStatus),
-}
-
-/// A line of the game log (the Executive publishes it as a `GameLog`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct LogLine {
-    /// `state`, `said`, `heard`, `ball`, `reach`, `anomaly`, `done`.
-    pub kind: &'static str,
-    pub text: String,
-    /// The distance the line is about (m), -1 when none.
-    pub distance_m: f64,
 }
 
 /// What the game asks of the rest of the robot, in order.
@@ -196,352 +182,6 @@ pub enum Output {
     Log(LogLine),
     /// The machine reached its final state.
     Finish,
-}
-
-/// The game's context: what the guards read and the actions write.
-#[derive(Debug)]
-pub struct TouchCtx {
-    settings: Arc<TouchSettings>,
-    /// The scan pattern ([`TouchSettings::scan_pattern`]).
-    scan_points: Vec<[f64; 3]>,
-    outputs: Vec<Output>,
-    next_id: u64,
-    arm_goal: u64,
-    gaze_goal: u64,
-    scan_index: usize,
-    ball_seen: bool,
-    /// The ball's last tracked centre in `world`, and where `ball:moved` last reported it.
-    ball_world: Option<[f64; 3]>,
-    ball_reported: Option<[f64; 3]>,
-    ball_camera_distance: Option<f64>,
-    /// Since when the tracker has held the ball without a break while out of sight.
-    held_out_of_sight_since: Option<Duration>,
-}
-
-impl TouchCtx {
-    fn new(settings: Arc<TouchSettings>) -> Self {
-        TouchCtx {
-            scan_points: settings.scan_pattern(),
-            settings,
-            outputs: Vec::new(),
-            next_id: 0,
-            arm_goal: 0,
-            gaze_goal: 0,
-            scan_index: 0,
-            ball_seen: false,
-            ball_world: None,
-            ball_reported: None,
-            ball_camera_distance: None,
-            held_out_of_sight_since: None,
-        }
-    }
-
-    fn id(&mut self) -> u64 {
-        self.next_id += 1;
-        self.next_id
-    }
-
-    fn log(&mut self, kind: &'static str, text: String, distance_m: f64) {
-        self.outputs.push(Output::Log(LogLine {
-            kind,
-            text,
-            distance_m,
-        }));
-    }
-
-    fn reach(
-        &mut self,
-        body_part: &str,
-        kind: ReachKind,
-        frame: &str,
-        p: [f64; 3],
-        follow: bool,
-    ) -> ReachGoal {
-        let s = &self.settings;
-        ReachGoal {
-            header: Header::default(),
-            id: 0,
-            client: s.client.clone(),
-            active: true,
-            body_part: body_part.to_string(),
-            kind,
-            frame: frame.to_string(),
-            position_m: p,
-            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-            tolerance_m: if kind == ReachKind::Gaze {
-                0.0
-            } else {
-                s.touch_tolerance_m
-            },
-            follow,
-            min_duration_s: 0.0,
-        }
-    }
-
-    fn cancel(&mut self, body_part: &str, id: u64) {
-        let mut g = self.reach(body_part, ReachKind::Position, "world", [0.0; 3], false);
-        g.active = false;
-        g.id = id;
-        self.outputs.push(Output::CancelReach(g));
-    }
-
-    fn rest_goal(&self, joints: &[JointRest]) -> JointGoal {
-        JointGoal {
-            header: Header::default(),
-            client: self.settings.client.clone(),
-            priority: self.settings.rest_priority,
-            targets: joints
-                .iter()
-                .map(|r| JointTarget {
-                    joint: r.joint.clone(),
-                    mode: JointMode::Position,
-                    position: r.position,
-                    max_speed: self.settings.rest_max_speed,
-                    velocity: 0.0,
-                })
-                .collect(),
-            release: false,
-        }
-    }
-
-    fn target(&self, active: bool) -> BallTarget {
-        BallTarget {
-            header: Header::default(),
-            active,
-            hue_deg: self.settings.ball_hue_deg,
-            saturation: self.settings.ball_saturation,
-            diameter_m: self.settings.ball_diameter_m,
-        }
-    }
-}
-
-impl Context<Act, Input> for TouchCtx {
-    fn run(&mut self, action: &Act, _event: &Event<Input>) {
-        let s = self.settings.clone();
-        match *action {
-            Act::Say(text, priority) => {
-                self.log("said", text.to_string(), -1.0);
-                self.outputs.push(Output::Say {
-                    text: text.to_string(),
-                    priority,
-                });
-            }
-            Act::SendTarget => {
-                let t = self.target(true);
-                self.outputs.push(Output::SetBallTarget(t));
-            }
-            Act::ClearTarget => {
-                let t = self.target(false);
-                self.outputs.push(Output::SetBallTarget(t));
-            }
-            Act::ScanFromStart => self.scan_index = 0,
-            Act::ScanNext => {
-                // The settings' check guarantees a point; without one the head stays put.
-                let n = self.scan_points.len().max(1);
-                let Some(p) = self.scan_points.get(self.scan_index % n).copied() else {
-                    return;
-                };
-                self.scan_index += 1;
-                let mut g = self.reach(&s.neck, ReachKind::Gaze, "world", p, false);
-                g.id = self.id();
-                self.gaze_goal = g.id;
-                self.outputs.push(Output::Reach(g));
-            }
-            Act::GazeAtBall => {
-                let mut g = self.reach(&s.neck, ReachKind::Gaze, "ball", [0.0; 3], true);
-                g.id = self.id();
-                self.gaze_goal = g.id;
-                self.outputs.push(Output::Reach(g));
-            }
-            Act::CancelGaze => {
-                let id = std::mem::take(&mut self.gaze_goal);
-                self.cancel(&s.neck, id);
-            }
-            Act::ReachBall => {
-                let release = JointGoal {
-                    header: Header::default(),
-                    client: s.client.clone(),
-                    priority: s.rest_priority,
-                    targets: Vec::new(),
-                    release: true,
-                };
-                self.outputs.push(Output::Release(release));
-                let mut g = self.reach(&s.arm, ReachKind::Position, "ball", s.touch_offset_m, true);
-                g.id = self.id();
-                self.arm_goal = g.id;
-                self.outputs.push(Output::Reach(g));
-            }
-            Act::HomeArm => {
-                let id = std::mem::take(&mut self.arm_goal);
-                self.cancel(&s.arm, id);
-                let goal = self.rest_goal(&s.arm_rest);
-                self.outputs.push(Output::Home(goal));
-            }
-            Act::HeadAhead => {
-                let id = std::mem::take(&mut self.gaze_goal);
-                self.cancel(&s.neck, id);
-                let goal = self.rest_goal(&s.head_rest);
-                self.outputs.push(Output::Home(goal));
-            }
-            Act::BallSeen(seen) => self.ball_seen = seen,
-            Act::Finish => {
-                self.log("done", "the game is over".into(), -1.0);
-                self.outputs.push(Output::Finish);
-            }
-        }
-    }
-}
-
-type Def = Definition<TouchCtx, Input, Act>;
-
-fn seen(c: &TouchCtx, _: &Event<Input>) -> bool {
-    c.ball_seen
-}
-
-/// The touch-the-ball machine for `settings` (see the module docs for the states).
-pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
-    use state::*;
-    let mut b = Builder::<TouchCtx, Input, Act>::new(MACHINE);
-    b.root_initial("game");
-    b.compound(GAME, "waiting");
-    b.atomic(WAITING);
-    b.parallel(PLAYING).exit(Act::ClearTarget);
-    b.compound(EYES, "idle");
-    b.atomic(EYES_IDLE);
-    b.compound(SEARCHING, "looking")
-        .entry(Act::SendTarget)
-        .entry(Act::ScanFromStart)
-        .entry(normal(say::LOOKING));
-    b.atomic(LOOKING).entry(Act::ScanNext);
-    b.atomic(HOLDING);
-    b.atomic(TRACKING)
-        .entry(Act::BallSeen(true))
-        .entry(Act::GazeAtBall)
-        .entry(normal(say::SEE_IT))
-        .exit(Act::BallSeen(false));
-    b.atomic(OUT_OF_SIGHT).entry(Act::CancelGaze);
-    b.compound(ARM, "resting");
-    b.atomic(RESTING);
-    b.compound(REACHING, "moving").entry(Act::ReachBall);
-    b.atomic(MOVING);
-    b.atomic(TOUCHING).entry(normal(say::TOUCHING));
-    b.atomic(FOLLOWING).entry(normal(say::FOLLOWING));
-    b.atomic(HOMING).entry(Act::HomeArm);
-    b.final_state(FINISHED);
-
-    // The whole game.
-    for cmd in ["command:stop", "command:quit"] {
-        b.on(GAME, cmd)
-            .to(FINISHED)
-            .action(Act::HomeArm)
-            .action(Act::HeadAhead)
-            .action(Act::Say(say::GOODBYE, Priority::Urgent))
-            .action(Act::Finish);
-    }
-    b.on(GAME, "command:greet").action(normal(say::GREETING));
-    b.on(GAME, "command:none")
-        .action(normal(say::PLEASE_REPEAT));
-    b.on(GAME, "command:other_game")
-        .action(normal(say::NOT_THIS_GAME));
-    // Explanations: in the arm region (one answer, however many regions are active).
-    for s in [WAITING, ARM] {
-        b.on(s, "command:touch_ball").action(normal(say::NOT_SEEN));
-        b.on(s, "command:you_touched_it")
-            .action(normal(say::NOT_TOUCHING));
-    }
-
-    // Waiting for the person.
-    b.on(WAITING, "command:play")
-        .to(PLAYING)
-        .action(normal(say::PLAY_ACK));
-    for cmd in ["command:scan_ball", "command:track_ball"] {
-        b.on(WAITING, cmd).to(SEARCHING);
-        b.on(EYES_IDLE, cmd).to(SEARCHING);
-        b.on(SEARCHING, cmd).action(normal(say::ALREADY_LOOKING));
-        b.on(TRACKING, cmd).action(normal(say::ALREADY_SEE_IT));
-        b.on(OUT_OF_SIGHT, cmd).to(SEARCHING);
-    }
-    b.on(PLAYING, "command:play")
-        .action(normal(say::ALREADY_PLAYING));
-
-    // The eyes. The scan: on to the next point once the neck is there (or cannot get there) and
-    // held still a moment; a neck that says nothing does not stop the scan.
-    for st in ["gaze:reached", "gaze:unreachable", "gaze:failed"] {
-        b.on(LOOKING, st).to(HOLDING);
-    }
-    b.after(
-        LOOKING,
-        Duration::from_secs_f64(settings.scan_move_timeout_s),
-        "scan",
-    )
-    .to(LOOKING);
-    b.after(
-        HOLDING,
-        Duration::from_secs_f64(settings.scan_dwell_s),
-        "dwell",
-    )
-    .to(LOOKING);
-    b.on(SEARCHING, "ball:detected").to(TRACKING);
-    b.on(SEARCHING, "ball:detection_timed_out")
-        .action(Act::SendTarget)
-        .action(normal(say::CANNOT_FIND));
-    b.on(TRACKING, "ball:out_of_view")
-        .to(OUT_OF_SIGHT)
-        .action(high(say::OUT_OF_SIGHT));
-    b.on(TRACKING, "ball:lost")
-        .to(SEARCHING)
-        .action(high(say::LOST));
-    b.on(TRACKING, "ball:detection_timed_out")
-        .to(SEARCHING)
-        .action(high(say::LOST));
-    b.on(OUT_OF_SIGHT, "ball:lost")
-        .to(SEARCHING)
-        .action(high(say::LOST));
-    b.on(OUT_OF_SIGHT, "ball:detection_timed_out")
-        .to(SEARCHING)
-        .action(high(say::LOST));
-    b.on(OUT_OF_SIGHT, "ball:detected").to(TRACKING);
-    // The tracker reported the ball at the border (say, while the head was still turning) but
-    // kept it, and the stopped head sees it well inside the image: follow it again.
-    b.on(OUT_OF_SIGHT, "ball:in_view").to(TRACKING);
-
-    // The arm.
-    b.on(RESTING, "command:touch_ball")
-        .guard("ball seen", seen)
-        .to(REACHING)
-        .action(normal(say::GOING_TO_TOUCH));
-    b.on(HOMING, "command:touch_ball")
-        .guard("ball seen", seen)
-        .to(REACHING)
-        .action(normal(say::GOING_TO_TOUCH));
-    b.after(HOMING, Duration::from_secs_f64(settings.homing_s), "homed")
-        .to(RESTING);
-    b.on(REACHING, "command:touch_ball")
-        .guard("ball seen", seen)
-        .to(REACHING)
-        .action(normal(say::GOING_TO_TOUCH));
-    b.on(MOVING, "reach:reached").to(TOUCHING);
-    b.on(FOLLOWING, "reach:reached").to(TOUCHING);
-    b.on(MOVING, "ball:moved").to(FOLLOWING);
-    b.on(TOUCHING, "ball:moved").to(FOLLOWING);
-    b.after(
-        TOUCHING,
-        Duration::from_secs_f64(settings.courtesy_delay_s),
-        "courtesy",
-    )
-    .to(HOMING)
-    .action(normal(say::COURTESY));
-    b.on(REACHING, "command:you_touched_it")
-        .to(HOMING)
-        .action(normal(say::THANKS));
-    b.on(REACHING, "reach:unreachable")
-        .to(HOMING)
-        .action(high(say::CANT_REACH));
-    b.on(REACHING, "reach:failed")
-        .to(HOMING)
-        .action(high(say::ARM_FAILED));
-    b.on(REACHING, "ball:lost").to(HOMING);
-    b.build()
 }
 
 /// The event name of a command.

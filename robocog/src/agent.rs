@@ -209,6 +209,10 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
     let mut term = signal(SignalKind::terminate())?;
     let mut int = signal(SignalKind::interrupt())?;
     let mut gone_since: Option<tokio::time::Instant> = None;
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the agent polls how long the launcher has been away on the wall: it supervises real processes"
+    )]
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     let reason = loop {
         tokio::select! {
@@ -221,7 +225,12 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
                         say(&me.name, "the launcher is back");
                     }
                 } else if gone_since.is_none() {
-                    gone_since = Some(tokio::time::Instant::now());
+                    #[expect(
+                        clippy::disallowed_methods,
+                        reason = "the launcher's absence is timed on the wall: the agent supervises real processes"
+                    )]
+                    let now = tokio::time::Instant::now();
+                    gone_since = Some(now);
                     let n = shared.running.lock().unwrap_or_else(|p| p.into_inner()).len();
                     if n > 0 {
                         say(&me.name, format!(
@@ -505,6 +514,10 @@ async fn stop_one(shared: &Arc<Shared>, name: &str, grace: Duration) -> i32 {
     };
     let group = Pid::from_raw(pid as i32);
     let _ = killpg(group, Signal::SIGTERM);
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a real process' stop time-out (SIGTERM, then SIGKILL), on the wall"
+    )]
     let ended = tokio::time::timeout(grace, async {
         let _ = exit.wait_for(|s| s.is_some()).await;
     })
@@ -518,6 +531,10 @@ async fn stop_one(shared: &Arc<Shared>, name: &str, grace: Duration) -> i32 {
             ),
         );
         let _ = killpg(group, Signal::SIGKILL);
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "waits for a killed real process to be reaped, on the wall"
+        )]
         let _ = tokio::time::timeout(Duration::from_secs(5), async {
             let _ = exit.wait_for(|s| s.is_some()).await;
         })

@@ -61,7 +61,15 @@ fn run_with_timeout(
             }
             s
         });
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "a time-out on a real child process, polled on the wall"
+        )]
         let started = Instant::now();
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "a time-out on a real child process, polled on the wall"
+        )]
         let status = loop {
             match child.try_wait() {
                 Ok(Some(status)) => break Ok(status),

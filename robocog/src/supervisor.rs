@@ -21,75 +21,24 @@
 use crate::manifest::{Component, Manifest, RestartPolicy};
 use interfaces::liveliness::{self, Token};
 use interfaces::node::{EX_CONFIG, EX_USAGE};
-use nix::sys::signal::{Signal, killpg};
-use nix::unistd::Pid;
+use nix::sys::signal::Signal;
 use std::collections::{HashMap, VecDeque};
-use std::process::{ExitStatus, Stdio};
+use std::process::ExitStatus;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use tokio::io::{AsyncBufReadExt, BufReader};
-use tokio::process::Command;
 use tokio::sync::{mpsc, watch};
 
 use crate::agent::{AGENT_PREFIX, LAUNCHER_NAME};
-use interfaces::bus::{Bus, CallError};
-use interfaces::msg::agent::{
-    AgentAction, AgentChild, AgentEvent, AgentEventKind, AgentRequest, EnvVar,
-};
-use std::os::unix::process::ExitStatusExt;
+use interfaces::bus::Bus;
+use interfaces::msg::agent::{AgentChild, AgentEvent};
 
-/// The machines of a graph over several, as the launcher sees them.
-struct Machines {
-    bus: Bus,
-    launch_id: String,
-    graph: String,
-    /// Agents on the bus now.
-    up: std::collections::BTreeSet<String>,
-    /// Agents that have been up at least once (a lost one is then "back" when it returns).
-    seen: std::collections::BTreeSet<String>,
-    since: Instant,
-    timeout: Duration,
-}
-
-/// The request every call to an agent starts from.
-fn agent_request(m: &Machines, action: AgentAction, c: &Child) -> AgentRequest {
-    AgentRequest {
-        launch_id: m.launch_id.clone(),
-        graph: m.graph.clone(),
-        action,
-        component: c.spec.name.clone(),
-        generation: c.generation,
-        ..Default::default()
-    }
-}
-
-/// Call machine `machine`'s agent, waiting at most `timeout` in all. An agent whose token has
-/// just reached the launcher may not be reachable by queries yet: when a link between routers
-/// comes back, the routers hear of each other's tokens before they have routes for queries, so a
-/// call finds nobody for a moment (seen after a pulled cable). Such calls are sent again until
-/// the time-out; any other failure is final.
-async fn call_agent(
-    bus: &Bus,
-    machine: &str,
-    request: &AgentRequest,
-    timeout: Duration,
-) -> Result<interfaces::msg::agent::AgentReply, String> {
-    let control = interfaces::topics::agent_control(machine)
-        .ok_or_else(|| format!("invalid machine name {machine:?}"))?;
-    let deadline = Instant::now() + timeout;
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        match bus.call(&control, request, left).await {
-            Err(CallError::NoServer(_)) if Instant::now() + AGENT_CALL_RETRY < deadline => {
-                tokio::time::sleep(AGENT_CALL_RETRY).await
-            }
-            other => return other.map_err(|e| format!("machine {machine}'s agent: {e}")),
-        }
-    }
-}
-
-/// How long a call to an agent that nobody served waits before it is sent again.
-const AGENT_CALL_RETRY: Duration = Duration::from_millis(100);
+mod process;
+mod remote;
+mod stop;
+use process::spawn;
+pub(crate) use process::{BoxFuture, spawn_process};
+use remote::{Machines, spawn_remote};
+use stop::stop_all;
 
 /// How `launch` runs.
 #[derive(Debug, Clone)]
@@ -304,15 +253,12 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                 me.router,
                 others.join(", ")
             ));
-            Some(Machines {
+            Some(Machines::new(
                 bus,
                 launch_id,
-                graph: manifest.name.clone(),
-                up: Default::default(),
-                seen: Default::default(),
-                since: Instant::now(),
-                timeout: opts.machine_timeout,
-            })
+                manifest.name.clone(),
+                opts.machine_timeout,
+            ))
         }
     };
 
@@ -394,6 +340,10 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             c.resolve_binary()
                 .ok_or_else(|| anyhow::anyhow!("{}: unknown binary {:?}", c.origin, c.binary))?
         };
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "the launcher supervises real processes: their start times are on the wall"
+        )]
         children.insert(
             c.name.clone(),
             Child {
@@ -417,6 +367,11 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
 
     let mut exit_code: Option<i32> = None;
     let mut pending: VecDeque<Event> = VecDeque::new();
+    // The launcher's status poll: start deadlines of real processes, on the wall.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the launcher polls real processes' start deadlines on the wall"
+    )]
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     loop {
         // Start whatever has all its dependencies up.
@@ -531,6 +486,10 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     c.state = State::Backoff;
                     let tx = tx.clone();
                     tokio::spawn(async move {
+                        #[expect(
+                            clippy::disallowed_methods,
+                            reason = "a real process' restart back-off, on the wall"
+                        )]
                         tokio::time::sleep(delay).await;
                         let _ = tx.send(Event::RestartDue { name }).await;
                     });
@@ -581,190 +540,41 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                 generation,
                 result,
             }) => {
-                let Some(c) = children.get_mut(&name) else {
-                    continue;
-                };
-                if c.generation != generation {
-                    continue;
-                }
-                match result {
-                    Ok(pid) => {
-                        say(format!(
-                            "started {} on machine {} (pid {pid}): {} {}",
-                            c.spec.name,
-                            c.remote.as_deref().unwrap_or("?"),
-                            c.spec.binary,
-                            c.spec.args.join(" ")
-                        ));
-                        if c.pid.is_none() {
-                            c.pid = Some(pid);
-                        }
-                    }
-                    Err(why) => {
-                        say(format!("cannot start {name}: {why}"));
-                        c.state = State::Failed;
-                        if c.spec.required {
-                            exit_code = Some(1);
-                        }
-                    }
+                if let Some(c) = children.get_mut(&name)
+                    && c.generation == generation
+                    && remote::started(c, result)
+                {
+                    exit_code = Some(1);
                 }
             }
             Some(Event::Remote(e)) => {
-                let Some(ms) = &machines else { continue };
-                if e.launch_id != ms.launch_id {
-                    continue;
-                }
-                let Some(c) = children.get_mut(&e.component) else {
-                    continue;
-                };
-                match e.kind {
-                    AgentEventKind::Stdout => {
-                        println!("{} {}", c.prefix, e.line);
-                        push_tail(&c.tail, e.line);
-                    }
-                    AgentEventKind::Stderr => {
-                        eprintln!("{} {}", c.prefix, e.line);
-                        push_tail(&c.tail, e.line);
-                    }
-                    AgentEventKind::Exited => {
-                        let status =
-                            (e.wait_status >= 0).then(|| ExitStatus::from_raw(e.wait_status));
-                        pending.push_back(Event::Exited {
-                            name: e.component,
-                            generation: e.generation,
-                            status,
-                        });
-                    }
+                if let Some(ms) = &machines {
+                    ms.on_event(e, &mut children, &mut pending);
                 }
             }
             Some(Event::MachineUp { machine }) => {
-                let Some(ms) = machines.as_mut() else {
-                    continue;
-                };
-                if !ms.up.insert(machine.clone()) {
-                    continue;
-                }
-                if ms.seen.insert(machine.clone()) {
-                    say(format!(
-                        "machine {machine}'s agent is up ({} ms)",
-                        ms.since.elapsed().as_millis()
-                    ));
-                } else {
-                    say(format!(
-                        "machine {machine} is back: asking its agent what still runs there"
-                    ));
-                    let bus = ms.bus.clone();
-                    let request = AgentRequest {
-                        launch_id: ms.launch_id.clone(),
-                        graph: ms.graph.clone(),
-                        action: AgentAction::Status,
-                        ..Default::default()
-                    };
-                    let tx = tx.clone();
-                    tokio::spawn(async move {
-                        let running = call_agent(&bus, &machine, &request, Duration::from_secs(10))
-                            .await
-                            .map(|r| r.running);
-                        let _ = tx.send(Event::Reconciled { machine, running }).await;
-                    });
+                if let Some(ms) = machines.as_mut() {
+                    ms.machine_up(machine, &tx);
                 }
             }
             Some(Event::MachineLost { machine }) => {
-                let Some(ms) = machines.as_mut() else {
-                    continue;
-                };
-                if !ms.up.remove(&machine) {
-                    continue;
+                if let Some(ms) = machines.as_mut() {
+                    ms.machine_lost(&machine, &mut children);
                 }
-                let mut lost: Vec<&str> = Vec::new();
-                for c in children.values_mut() {
-                    if c.remote.as_deref() == Some(machine.as_str())
-                        && matches!(c.state, State::Up | State::Starting { .. } | State::Backoff)
-                    {
-                        c.state = State::Unreachable;
-                        lost.push(&c.spec.name);
-                    }
-                }
-                lost.sort();
-                say(format!(
-                    "machine {machine} is out of reach (its agent left the bus: the machine or its link is down); its components {} are out of reach too: they run on there if the machine does, and are taken up again when it is back",
-                    if lost.is_empty() {
-                        "(none running)".to_string()
-                    } else {
-                        lost.join(", ")
-                    }
-                ));
             }
             Some(Event::Reconciled { machine, running }) => {
-                let running = match running {
-                    Ok(r) => r,
-                    Err(why) => {
-                        say(format!(
-                            "{why}: it did not say what runs on machine {machine}; its components there count as stopped"
-                        ));
-                        Vec::new()
-                    }
-                };
-                let mut names: Vec<String> = Vec::new();
-                for c in children.values_mut() {
-                    if c.remote.as_deref() != Some(machine.as_str())
-                        || c.state != State::Unreachable
-                    {
-                        continue;
-                    }
-                    match running
-                        .iter()
-                        .find(|r| r.component == c.spec.name && r.generation == c.generation)
-                    {
-                        Some(r) => {
-                            c.state = State::Up;
-                            c.pid = Some(r.pid);
-                            names.push(c.spec.name.clone());
-                        }
-                        None => {
-                            // It stopped while the machine was away: its policy decides.
-                            c.state = State::Starting {
-                                deadline: Instant::now() + c.spec.ready_timeout,
-                            };
-                            pending.push_back(Event::Exited {
-                                name: c.spec.name.clone(),
-                                generation: c.generation,
-                                status: None,
-                            });
-                        }
-                    }
-                }
-                names.sort();
-                say(format!(
-                    "machine {machine}: {} ran on while it was away",
-                    if names.is_empty() {
-                        "nothing".to_string()
-                    } else {
-                        names.join(", ")
-                    }
-                ));
+                remote::reconciled(&machine, running, &mut children, &mut pending);
             }
             None => {
+                #[expect(
+                    clippy::disallowed_methods,
+                    reason = "real processes' start deadlines are on the wall"
+                )]
                 let now = Instant::now();
                 if let Some(ms) = &machines
-                    && ms.since.elapsed() > ms.timeout
+                    && ms.agents_missing(&children)
                 {
-                    let mut missing: Vec<&str> = children
-                        .values()
-                        .filter(|c| c.state == State::Pending)
-                        .filter_map(|c| c.remote.as_deref())
-                        .filter(|m| !ms.seen.contains(*m))
-                        .collect();
-                    missing.sort();
-                    missing.dedup();
-                    if !missing.is_empty() {
-                        say(format!(
-                            "no agent on machine {} within {:.0} s: is `robocog agent --machine <name> <manifest>` running there, and can its router reach this one (the [machines] endpoints, certificates, firewall)?",
-                            missing.join(", "),
-                            ms.timeout.as_secs_f64()
-                        ));
-                        exit_code = Some(1);
-                    }
+                    exit_code = Some(1);
                 }
                 for c in children.values_mut() {
                     if let State::Starting { deadline } = c.state
@@ -869,23 +679,6 @@ fn last_lines(c: &Child) -> String {
     s
 }
 
-/// Ask the kernel to SIGKILL the child when the launcher dies, whatever the reason.
-#[allow(unsafe_code)]
-pub(crate) fn die_with_parent(cmd: &mut Command) {
-    // SAFETY: the closure runs in the forked child before exec and only calls prctl(2), which is
-    // async-signal-safe, and getppid(2).
-    unsafe {
-        cmd.pre_exec(|| {
-            nix::sys::prctl::set_pdeathsig(Signal::SIGKILL).map_err(std::io::Error::from)?;
-            // The launcher may already be gone (it died between fork and prctl).
-            if nix::unistd::getppid() == Pid::from_raw(1) {
-                return Err(std::io::Error::other("the launcher is gone"));
-            }
-            Ok(())
-        });
-    }
-}
-
 /// The component tokens of namespace `ns` as they come and go (those already there first).
 pub(crate) async fn component_tokens(
     session: &zenoh::Session,
@@ -900,286 +693,4 @@ pub(crate) async fn component_tokens(
         .with(zenoh::handlers::FifoChannel::new(1024))
         .await
         .map_err(|e| anyhow::anyhow!("cannot watch liveliness: {e}"))
-}
-
-/// What a process's exit runs.
-pub(crate) type BoxFuture = std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>>;
-
-/// A process started by [`spawn_process`].
-pub(crate) struct Spawned {
-    pub pid: u32,
-    /// Becomes `Some(status)` when it has exited (`None` inside: its status is unknown).
-    pub exit: watch::Receiver<Option<Option<ExitStatus>>>,
-}
-
-/// Start `binary` as a component process: its own process group, killed with its parent, stdin
-/// closed, every line it writes handed to `on_line` (with whether it came on stderr), and
-/// `on_exit` called with its status once it has exited.
-pub(crate) fn spawn_process(
-    binary: &std::path::Path,
-    args: &[String],
-    env: Vec<(String, String)>,
-    on_line: impl Fn(String, bool) + Send + Sync + 'static,
-    on_exit: impl FnOnce(Option<ExitStatus>) -> BoxFuture + Send + 'static,
-) -> anyhow::Result<Spawned> {
-    let mut cmd = Command::new(binary);
-    cmd.args(args)
-        .envs(env)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .process_group(0)
-        .kill_on_drop(false);
-    die_with_parent(&mut cmd);
-    let mut child = cmd
-        .spawn()
-        .map_err(|e| anyhow::anyhow!("cannot run {}: {e}", binary.display()))?;
-    let pid = child.id().unwrap_or(0);
-    let on_line = Arc::new(on_line);
-    for (stream, to_stderr) in [
-        (
-            child
-                .stdout
-                .take()
-                .map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
-            false,
-        ),
-        (
-            child
-                .stderr
-                .take()
-                .map(|s| Box::new(s) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
-            true,
-        ),
-    ] {
-        let Some(stream) = stream else { continue };
-        let on_line = on_line.clone();
-        tokio::spawn(async move {
-            let mut lines = BufReader::new(stream).split(b'\n');
-            while let Ok(Some(line)) = lines.next_segment().await {
-                on_line(
-                    String::from_utf8_lossy(&line).trim_end().to_string(),
-                    to_stderr,
-                );
-            }
-        });
-    }
-    let (exit_tx, exit_rx) = watch::channel(None);
-    tokio::spawn(async move {
-        let status = child.wait().await.ok();
-        let _ = exit_tx.send(Some(status));
-        on_exit(status).await;
-    });
-    Ok(Spawned { pid, exit: exit_rx })
-}
-
-fn spawn(
-    c: &mut Child,
-    connect: &interfaces::ConnectArgs,
-    state_dir: &std::path::Path,
-    tx: &mpsc::Sender<Event>,
-) -> anyhow::Result<()> {
-    let mut env = connect.to_env();
-    env.push(("ROBOCOG_COMPONENT".into(), c.spec.name.clone()));
-    env.push((
-        "ROBOCOG_STATE_DIR".into(),
-        state_dir.join(&c.spec.name).display().to_string(),
-    ));
-    env.extend(c.spec.env.iter().map(|(k, v)| (k.clone(), v.clone())));
-    let prefix = c.prefix.clone();
-    let tail = c.tail.clone();
-    let on_line = move |line: String, to_stderr: bool| {
-        if to_stderr {
-            eprintln!("{prefix} {line}");
-        } else {
-            println!("{prefix} {line}");
-        }
-        push_tail(&tail, line);
-    };
-    let tx = tx.clone();
-    let name = c.spec.name.clone();
-    let generation = c.generation + 1;
-    let on_exit = move |status: Option<ExitStatus>| -> BoxFuture {
-        Box::pin(async move {
-            let _ = tx
-                .send(Event::Exited {
-                    name,
-                    generation,
-                    status,
-                })
-                .await;
-        })
-    };
-    let spawned = spawn_process(&c.binary, &c.spec.args, env, on_line, on_exit)?;
-    let pid = spawned.pid;
-    c.generation = generation;
-    c.pid = Some(pid);
-    c.started = Instant::now();
-    c.state = State::Starting {
-        deadline: Instant::now() + c.spec.ready_timeout,
-    };
-    c.exit = Some(spawned.exit);
-    say(format!(
-        "started {} (pid {pid}): {} {}",
-        c.spec.name,
-        c.binary.display(),
-        c.spec.args.join(" ")
-    ));
-    Ok(())
-}
-
-/// Ask `c`'s machine's agent to start it; the answer comes back as [`Event::RemoteStarted`].
-fn spawn_remote(c: &mut Child, ms: &Machines, tx: &mpsc::Sender<Event>) {
-    c.generation += 1;
-    c.pid = None;
-    c.started = Instant::now();
-    c.state = State::Starting {
-        deadline: Instant::now() + c.spec.ready_timeout,
-    };
-    let machine = c.remote.clone().unwrap_or_default();
-    let mut request = agent_request(ms, AgentAction::Start, c);
-    request.binary = c.spec.binary.clone();
-    request.dir = c.spec.dir.display().to_string();
-    request.args = c.spec.args.clone();
-    request.env = c
-        .spec
-        .env
-        .iter()
-        .map(|(k, v)| EnvVar {
-            name: k.clone(),
-            value: v.clone(),
-        })
-        .collect();
-    let bus = ms.bus.clone();
-    let tx = tx.clone();
-    let name = c.spec.name.clone();
-    let generation = c.generation;
-    tokio::spawn(async move {
-        let result = call_agent(&bus, &machine, &request, Duration::from_secs(10))
-            .await
-            .map(|r| r.pid);
-        let _ = tx
-            .send(Event::RemoteStarted {
-                name,
-                generation,
-                result,
-            })
-            .await;
-    });
-}
-
-/// Keep `line` among the last lines of a component (shown when it fails).
-pub(crate) fn push_tail(tail: &Mutex<VecDeque<String>>, line: String) {
-    let mut t = tail.lock().unwrap_or_else(|p| p.into_inner());
-    if t.len() == TAIL_LINES {
-        t.pop_front();
-    }
-    t.push_back(line);
-}
-
-/// Stop every running child, dependents before their dependencies: SIGTERM to its process group,
-/// then SIGKILL after its stop time-out. Finally SIGKILL every group, so nothing is left behind.
-async fn stop_all(
-    manifest: &Manifest,
-    children: &mut HashMap<String, Child>,
-    machines: Option<&Machines>,
-) {
-    // Depth in the dependency graph: leaves (no dependents) stop first.
-    let mut depth: HashMap<String, usize> = HashMap::new();
-    if let Ok(order) = manifest.start_order() {
-        for c in order {
-            let d = c
-                .depends_on
-                .iter()
-                .filter_map(|d| depth.get(d))
-                .max()
-                .map_or(0, |d| d + 1);
-            depth.insert(c.name.clone(), d);
-        }
-    }
-    let max_depth = depth.values().copied().max().unwrap_or(0);
-    let mut groups = Vec::new();
-    for level in (0..=max_depth).rev() {
-        let mut waiting = Vec::new();
-        let mut remote: Vec<BoxFuture> = Vec::new();
-        for c in children.values_mut() {
-            if depth.get(&c.spec.name).copied().unwrap_or(0) != level {
-                continue;
-            }
-            if let Some(machine) = c.remote.clone() {
-                // On another machine: its agent stops it (and says so when it has exited).
-                let running = c.pid.take().is_some()
-                    || matches!(c.state, State::Starting { .. } | State::Unreachable);
-                if let (true, Some(ms)) = (running, machines) {
-                    let mut request = agent_request(ms, AgentAction::Stop, c);
-                    request.stop_timeout_ms = c.spec.stop_timeout.as_millis() as u64;
-                    let wait = c.spec.stop_timeout + Duration::from_secs(6);
-                    let bus = ms.bus.clone();
-                    let name = c.spec.name.clone();
-                    let reachable = ms.up.contains(&machine);
-                    remote.push(Box::pin(async move {
-                        if !reachable {
-                            say(format!(
-                                "cannot stop {name}: machine {machine} is out of reach (its agent stops it once the launcher has been gone a while)"
-                            ));
-                            return;
-                        }
-                        if let Err(e) = call_agent(&bus, &machine, &request, wait).await {
-                            say(format!("cannot stop {name}: {e}"));
-                        }
-                    }));
-                }
-                continue;
-            }
-            if let Some(pid) = c.pid.take() {
-                groups.push(pid);
-                let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGTERM);
-                waiting.push((
-                    c.spec.name.clone(),
-                    pid,
-                    c.spec.stop_timeout,
-                    c.exit.clone(),
-                ));
-            }
-        }
-        let waits = waiting
-            .into_iter()
-            .map(|(name, pid, grace, exit)| async move {
-                let Some(mut exit) = exit else { return };
-                let done = tokio::time::timeout(grace, async {
-                    let _ = exit.wait_for(|s| s.is_some()).await.map(|_| ());
-                })
-                .await;
-                if done.is_err() {
-                    say(format!(
-                        "{name} ignored SIGTERM for {:.1} s: SIGKILL",
-                        grace.as_secs_f64()
-                    ));
-                    let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGKILL);
-                    let _ = tokio::time::timeout(Duration::from_secs(5), async {
-                        let _ = exit.wait_for(|s| s.is_some()).await.map(|_| ());
-                    })
-                    .await;
-                }
-            });
-        let remote = remote.into_iter().map(tokio::spawn).collect::<Vec<_>>();
-        futures_join_all(waits).await;
-        for r in remote {
-            let _ = r.await;
-        }
-    }
-    // Anything a component left in its group goes too.
-    for pid in groups {
-        let _ = killpg(Pid::from_raw(pid as i32), Signal::SIGKILL);
-    }
-    say("all components stopped");
-}
-
-async fn futures_join_all<F: std::future::Future<Output = ()> + Send + 'static>(
-    futures: impl IntoIterator<Item = F>,
-) {
-    let handles: Vec<_> = futures.into_iter().map(tokio::spawn).collect();
-    for h in handles {
-        let _ = h.await;
-    }
 }

@@ -14,6 +14,10 @@
 //! Run: `scripts/bench.d/dr.sh`, or `cargo run --release -p deep_representation --bin bench_dr --
 //! [--calls 5000] [--lookups 200000]`. The last line printed is one JSON object (units in the
 //! keys).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: it times calls over a real bus on the wall's monotonic clock"
+)]
 
 use std::time::{Duration, Instant};
 

@@ -113,12 +113,13 @@ pub async fn run_observed(
         "coach: machine `{MACHINE}` with states {:?}",
         game.machine().definition().state_paths()
     );
-    let _ = tokio::time::timeout(BRIDGE_WAIT, async {
-        while !listening(&readers) {
-            readers.changed().await;
-        }
-    })
-    .await;
+    let _ = clock
+        .timeout(BRIDGE_WAIT, async {
+            while !listening(&readers) {
+                readers.changed().await;
+            }
+        })
+        .await;
     let mut kept = StateFile::new(state_dir, "coach.json");
     let mut o = match kept.load() {
         Some(record) => game.resume(&record, now()),
@@ -227,7 +228,7 @@ impl Publishers {
                         machine: MACHINE.into(),
                         kind: l.kind.into(),
                         text: l.text,
-                        distance_m: -1.0,
+                        distance_m: l.distance_m,
                         ..Default::default()
                     };
                     self.log.publish(&mut g).await?;

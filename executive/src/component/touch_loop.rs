@@ -552,6 +552,10 @@ pub(super) async fn run_touch(
         if out.finished && config.exit_when_finished {
             // Let the last messages and the rest postures go out (on the wall clock: this waits
             // for the bus, and a replay's clock may never move again).
+            #[expect(
+                clippy::disallowed_methods,
+                reason = "the last messages drain to the transport on the wall: a replay's clock may never move again"
+            )]
             tokio::time::sleep(Duration::from_millis(500)).await;
             while let Ok(h) = home_rx.try_recv() {
                 if let Err(e) = h.result {

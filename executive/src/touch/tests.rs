@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::state_file::Record;
+use interfaces::msg::body::ReachKind;
 use interfaces::msg::command::CommandSource;
 
 fn t(s: f64) -> Duration {

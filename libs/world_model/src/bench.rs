@@ -12,6 +12,10 @@
 //!
 //! This module reads the monotonic clock (`Instant`); it is a measurement tool, not part of the
 //! world model.
+#![expect(
+    clippy::disallowed_methods,
+    reason = "a benchmark: it measures CPU work on the wall's monotonic clock"
+)]
 
 use std::hint::black_box;
 use std::time::Instant;

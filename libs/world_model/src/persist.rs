@@ -397,6 +397,10 @@ mod tests {
         }
     }
 
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the wall's nanoseconds only make a scratch folder's name unique, not a time"
+    )]
     fn scratch(tag: &str) -> Scratch {
         let d = std::env::temp_dir().join(format!(
             "dr-persist-{tag}-{}-{}",

@@ -172,6 +172,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
 
     // The writer thread: the only place that touches the file.
     let flush_every = Duration::from_secs_f64(args.flush_s);
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "the writer thread flushes the file to the disk on the wall"
+    )]
     let writer_thread = {
         let stats = stats.clone();
         let stop = stop.clone();
@@ -242,6 +246,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         subscribers.push(sub);
     }
     drop(tx);
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a recording of the live bus: its length is the wall's"
+    )]
     let started = Instant::now();
     let started_ns = interfaces::header::system_now_ns();
     eprintln!(
@@ -278,6 +286,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
     }
 
     // Run until told to stop, printing progress.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a recording of the live bus: its duration and progress reports are the wall's"
+    )]
     let why = {
         let mut sigterm =
             tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
@@ -310,6 +322,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
         let _ = s.undeclare().await;
     }
     // A callback that passed the stop check just before it was set has finished by now.
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "lets the transport's last callbacks finish, on the wall"
+    )]
     tokio::time::sleep(Duration::from_millis(100)).await;
     done.store(true, Ordering::Release);
     let elapsed = started.elapsed();

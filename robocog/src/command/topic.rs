@@ -198,6 +198,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
             }
             Ok(0)
         }
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "a command-line tool on the live bus: `--timeout` is the user's wait, on the wall"
+        )]
         Verb::Echo {
             topic,
             count,
@@ -268,6 +272,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 }
             }
         }
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "a command-line tool on the live bus: it measures the rate messages arrive at, on the wall"
+        )]
         Verb::Hz {
             topic,
             window,
@@ -310,6 +318,10 @@ pub async fn execute(args: Args) -> anyhow::Result<i32> {
                 }
             }
         }
+        #[expect(
+            clippy::disallowed_methods,
+            reason = "a command-line tool on the live bus: its wait for a subscriber, its rate and its flush are the wall's"
+        )]
         Verb::Pub {
             topic,
             json,

@@ -10,25 +10,30 @@
 //! The person prints a readable log line for everything she does and every expectation met, with
 //! the figures (hand-to-ball distance, gaze angle, time taken). A failed expectation ends the run
 //! with an error naming the step, what was expected and what was seen instead.
+//!
+//! Time: the scenario (the ball's moves and its `sim/ball` rate, the pauses, the turn-taking and
+//! the expectations' time-outs) runs on the bus clock; her voice (`voice`) is a real-time
+//! stream on the wall, as a microphone or a sound server paces it.
 
 use crate::ball::{Ball, BallState, dist};
 use crate::scenario::{BallMove, Expect, Scenario, Step};
-use audio::signal::{self as pcm, NoiseKind, NoiseRng};
+use audio::signal as pcm;
 use audio::synth::{self, Voice};
 use interfaces::msg::body::ReachState;
 use interfaces::msg::dr::TransformRequest;
-use interfaces::msg::speech::{AudioChunk, SpeakingEvent, SpeakingState};
+use interfaces::msg::speech::{SpeakingEvent, SpeakingState};
 use interfaces::msg::tracking::{BallEventKind, SimBall};
-use interfaces::{Bus, CallError, topics};
+use interfaces::{Bus, CallError, Clock, Moment, topics};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
-use tokio::time::Instant;
 
-/// Audio stream rate (Hz) and chunk length (samples: 100 ms).
+mod voice;
+use voice::{AudioOut, SpeechJob, audio_stream, into_room};
+
+/// Audio stream rate (Hz).
 pub const RATE_HZ: u32 = 16_000;
-const CHUNK: usize = 1_600;
 
 /// How the person runs.
 #[derive(Debug, Clone)]
@@ -67,20 +72,20 @@ pub const PULSE_BUFFER: Duration = Duration::from_millis(200);
 /// What the person saw, for the expectations.
 #[derive(Debug, Default)]
 struct Seen {
-    said: Vec<(Instant, String)>,
+    said: Vec<(Moment, String)>,
     /// The robot's sentences queued or being said, by id, with when they will be over at the
     /// latest (from Queued or Started until Finished, Interrupted, Dropped or Failed): the robot
     /// has the floor while one is left, including the short gap between two sentences it says
     /// in a row. The time bound lets a sentence whose end never comes (a speech generator
     /// killed mid-sentence) go.
-    robot_sentences: BTreeMap<u64, Instant>,
+    robot_sentences: BTreeMap<u64, Moment>,
     /// The robot said it cannot hear her (its recognizer is restarting): she waits until it
     /// says it hears her again, [`DEAF_AT_MOST`] at most.
-    deaf_until: Option<Instant>,
-    entered: Vec<(Instant, String)>,
+    deaf_until: Option<Moment>,
+    entered: Vec<(Moment, String)>,
     active: Vec<String>,
-    reach: Vec<(Instant, String, ReachState)>,
-    ball_events: Vec<(Instant, BallEventKind)>,
+    reach: Vec<(Moment, String, ReachState)>,
+    ball_events: Vec<(Moment, BallEventKind)>,
 }
 
 /// How long after its audio should have ended a sentence still counts as being said.
@@ -92,13 +97,13 @@ const DEAF_AT_MOST: Duration = Duration::from_secs(60);
 
 impl Seen {
     /// Whether the robot is speaking, or about to say a sentence it has queued.
-    fn robot_has_the_floor(&self, now: Instant) -> bool {
+    fn robot_has_the_floor(&self, now: Moment) -> bool {
         self.robot_sentences.values().any(|&until| until > now)
             || self.deaf_until.is_some_and(|until| until > now)
     }
 
     /// What the person makes of the robot's `speech/speaking` event at `now`.
-    fn on_speaking(&mut self, m: &SpeakingEvent, now: Instant) {
+    fn on_speaking(&mut self, m: &SpeakingEvent, now: Moment) {
         match m.state {
             SpeakingState::Started => {
                 let text = m.text.to_lowercase();
@@ -171,9 +176,6 @@ pub struct Timing {
     pub action: String,
 }
 
-/// A speech job for the audio task: samples to mix in, and who to tell when they are out.
-type SpeechJob = (Vec<i16>, oneshot::Sender<()>);
-
 /// Run the scenario to its end (or to the first failed expectation, or shutdown).
 pub async fn run(
     bus: Bus,
@@ -181,8 +183,13 @@ pub async fn run(
     mut shutdown: interfaces::node::Shutdown,
 ) -> anyhow::Result<Outcome> {
     let sc = cfg.scenario.clone();
-    let t0 = Instant::now();
-    let now_s = move || t0.elapsed().as_secs_f64();
+    // The scenario's time (the ball's moves, the pauses, the time-outs) is the bus clock's.
+    let clock = bus.clock().clone();
+    let t0 = clock.now();
+    let now_s = {
+        let clock = clock.clone();
+        move || clock.elapsed(t0).as_secs_f64()
+    };
     let ball = Arc::new(Mutex::new(Ball::new(
         sc.ball.start,
         sc.ball.present,
@@ -199,9 +206,9 @@ pub async fn run(
         let ball = ball.clone();
         let spec = sc.ball.clone();
         let period = Duration::from_secs_f64(1.0 / cfg.ball_rate_hz.max(1.0));
+        let mut tick = clock.interval(period);
+        let now_s = now_s.clone();
         tasks.spawn(async move {
-            let mut tick = tokio::time::interval(period);
-            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
             loop {
                 tick.tick().await;
                 let s = lock(&ball).at(now_s());
@@ -253,10 +260,10 @@ pub async fn run(
         sc.ball.start[1],
         sc.ball.start[2]
     );
-    tokio::time::sleep(Duration::from_secs_f64(cfg.settle_s)).await;
+    clock.sleep(Duration::from_secs_f64(cfg.settle_s)).await;
 
-    let mut mark = Instant::now();
-    let mut action_end = Instant::now();
+    let mut mark = clock.now();
+    let mut action_end = clock.now();
     let mut last_said: Option<String> = None;
     // The last action: its step and what it was (for the timings).
     let mut last_action: (usize, String) = (0, String::new());
@@ -268,39 +275,60 @@ pub async fn run(
         let n = i + 1;
         match step {
             Step::Say(text) | Step::Interrupt(text) => {
-                mark = Instant::now();
+                mark = clock.now();
                 let over = matches!(step, Step::Interrupt(_));
                 if over && lock(&seen).robot_has_the_floor(mark) {
                     println!("person: talks over the robot");
                 }
-                say(&speech_tx, &voice, text, !over, &seen, &mut shutdown).await?;
-                action_end = Instant::now();
+                say(
+                    &speech_tx,
+                    &voice,
+                    text,
+                    !over,
+                    &seen,
+                    &clock,
+                    &mut shutdown,
+                )
+                .await?;
+                action_end = clock.now();
                 println!("person: says {text:?}");
                 last_said = Some(text.clone());
                 last_action = (n, format!("says {text:?}"));
             }
             Step::Ball(m) => {
-                mark = Instant::now();
+                mark = clock.now();
                 let arrival = move_ball(&ball, now_s(), m);
-                action_end = Instant::now();
+                action_end = clock.now();
                 println!("person: {}", describe_move(m));
                 last_action = (n, describe_move(m));
                 if m.wait {
-                    tokio::time::sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0))).await;
+                    clock
+                        .sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0)))
+                        .await;
                 }
             }
             Step::PauseS(s) => {
                 tokio::select! {
-                    _ = tokio::time::sleep(Duration::from_secs_f64(*s)) => {}
+                    _ = clock.sleep(Duration::from_secs_f64(*s)) => {}
                     _ = shutdown.wait() => anyhow::bail!("stopped during step {n}"),
                 }
             }
             Step::Expect(e) => {
                 let mut repeats_left = e.repeat;
                 loop {
-                    let started = Instant::now();
-                    match expect(&bus, &cfg, &sc, e, mark, &seen, &ball, now_s, &mut shutdown)
-                        .await?
+                    let started = clock.now();
+                    match expect(
+                        &bus,
+                        &cfg,
+                        &sc,
+                        e,
+                        mark,
+                        &seen,
+                        &ball,
+                        &now_s,
+                        &mut shutdown,
+                    )
+                    .await?
                     {
                         Ok(figures) => {
                             if let Some(d) = figures.hand_to_ball_m {
@@ -308,12 +336,12 @@ pub async fn run(
                                     outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
                                 );
                             }
-                            let after_s = action_end.elapsed().as_secs_f64();
+                            let after_s = clock.elapsed(action_end).as_secs_f64();
                             println!(
                                 "person: sees {} ({:.1} s after the last action, waited {:.1} s){}",
                                 e.describe(),
                                 after_s,
-                                started.elapsed().as_secs_f64(),
+                                clock.elapsed(started).as_secs_f64(),
                                 figures.describe()
                             );
                             outcome.timings.push(Timing {
@@ -335,9 +363,10 @@ pub async fn run(
                                     e.describe(),
                                     e.timeout_s
                                 );
-                                mark = Instant::now();
-                                say(&speech_tx, &voice, text, true, &seen, &mut shutdown).await?;
-                                action_end = Instant::now();
+                                mark = clock.now();
+                                say(&speech_tx, &voice, text, true, &seen, &clock, &mut shutdown)
+                                    .await?;
+                                action_end = clock.now();
                                 last_action = (n, format!("says {text:?}"));
                                 continue;
                             }
@@ -395,25 +424,26 @@ async fn say(
     text: &str,
     take_turns: bool,
     seen: &Mutex<Seen>,
+    clock: &Clock,
     shutdown: &mut interfaces::node::Shutdown,
 ) -> anyhow::Result<()> {
-    let turn = Instant::now() + Duration::from_secs_f64(TURN_WAIT_S);
+    let turn = clock.now() + Duration::from_secs_f64(TURN_WAIT_S);
     let mut waited = false;
     // Told it cannot hear her, she waits for it to say it can (bounded by DEAF_AT_MOST).
     let turn = |seen: &Seen| seen.deaf_until.map_or(turn, |d| d.max(turn));
     while take_turns && {
         let s = lock(seen);
-        s.robot_has_the_floor(Instant::now()) && Instant::now() < turn(&s)
+        s.robot_has_the_floor(clock.now()) && clock.now() < turn(&s)
     } {
         waited = true;
         tokio::select! {
-            _ = tokio::time::sleep(Duration::from_millis(50)) => {}
+            _ = clock.sleep(Duration::from_millis(50)) => {}
             _ = shutdown.wait() => anyhow::bail!("stopped while waiting to speak"),
         }
     }
     if waited {
         // A short pause after the robot's last word.
-        tokio::time::sleep(Duration::from_millis(400)).await;
+        clock.sleep(Duration::from_millis(400)).await;
     }
     let (v, t) = (voice.clone(), text.to_string());
     let samples = tokio::task::spawn_blocking(move || synth::synthesize_16k(&t, &v)).await??;
@@ -428,103 +458,6 @@ async fn say(
     }
 }
 
-/// Where [`audio_stream`] puts its chunks.
-enum AudioOut {
-    Bus(interfaces::Publisher<AudioChunk>),
-    /// To the thread that writes them into the sound server.
-    Pulse(std::sync::mpsc::SyncSender<Vec<i16>>),
-}
-
-/// Open the room's `sink` and start the thread that plays what the returned sender gets. A
-/// chunk the server does not take in time is dropped and logged (the person's voice would
-/// stutter: the test fails on its own expectations, with the log saying why).
-fn into_room(
-    server: Option<String>,
-    sink: &str,
-) -> anyhow::Result<std::sync::mpsc::SyncSender<Vec<i16>>> {
-    let mut playback = pulse::Playback::open(
-        server.as_deref(),
-        sink,
-        RATE_HZ,
-        1,
-        PULSE_BUFFER,
-        "person's voice",
-    )?;
-    tracing::info!("the person speaks into the sound server's sink {sink:?}");
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<i16>>(10);
-    std::thread::Builder::new()
-        .name("person-voice".into())
-        .spawn(move || {
-            while let Ok(chunk) = rx.recv() {
-                if let Err(e) = playback.write(&chunk) {
-                    tracing::warn!("the person's voice cannot reach the room: {e}");
-                    return;
-                }
-            }
-        })?;
-    Ok(tx)
-}
-
-/// Room noise in real time, with speech mixed in when there is some.
-async fn audio_stream(
-    out: AudioOut,
-    mut speech: mpsc::Receiver<SpeechJob>,
-    noise_power: f64,
-    seed: u64,
-) {
-    let mut rng = NoiseRng::new(seed);
-    let mut tick = tokio::time::interval(Duration::from_millis(100));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
-    // Current sentence: samples, position, who to tell at the end.
-    let mut current: Option<(Vec<i16>, usize, oneshot::Sender<()>)> = None;
-    loop {
-        tick.tick().await;
-        if current.is_none()
-            && let Ok((s, done)) = speech.try_recv()
-        {
-            // A little silence before and after the words, as people leave.
-            current = Some((s, 0, done));
-        }
-        let noise = pcm::noise(CHUNK, NoiseKind::White, noise_power, &mut rng);
-        let mut chunk: Vec<i16> = noise
-            .iter()
-            .map(|x| x.clamp(-32768.0, 32767.0) as i16)
-            .collect();
-        let mut finished = false;
-        if let Some((s, pos, _)) = current.as_mut() {
-            for (k, c) in chunk.iter_mut().enumerate() {
-                if let Some(v) = s.get(*pos + k) {
-                    *c = (*c as i32 + *v as i32).clamp(-32768, 32767) as i16;
-                }
-            }
-            *pos += CHUNK;
-            finished = *pos >= s.len();
-        }
-        if finished && let Some((_, _, done)) = current.take() {
-            let _ = done.send(());
-        }
-        match &out {
-            AudioOut::Bus(p) => {
-                if let Err(e) = p.publish(&mut AudioChunk::mono(RATE_HZ, &chunk)).await {
-                    tracing::warn!("cannot publish audio/in: {e}");
-                }
-            }
-            AudioOut::Pulse(tx) => match tx.try_send(chunk) {
-                Ok(()) => {}
-                Err(std::sync::mpsc::TrySendError::Full(_)) => {
-                    tracing::warn!(
-                        "the sound server is not taking the person's voice: a chunk is dropped"
-                    );
-                }
-                Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
-                    tracing::warn!("the person's voice stopped: its sound server is gone");
-                    return;
-                }
-            },
-        }
-    }
-}
-
 async fn spawn_senses(
     bus: &Bus,
     seen: Arc<Mutex<Seen>>,
@@ -534,6 +467,7 @@ async fn spawn_senses(
     let transitions = bus.subscriber(&topics::EXECUTIVE_TRANSITIONS).await?;
     let reach = bus.subscriber(&topics::BODY_REACH_STATUS).await?;
     let events = bus.subscriber(&topics::VISION_BALL_EVENTS).await?;
+    let clock = bus.clock().clone();
     tasks.spawn(async move {
         loop {
             tokio::select! {
@@ -542,12 +476,12 @@ async fn spawn_senses(
                     if m.state == SpeakingState::Started {
                         println!("person: hears the robot say {:?}", m.text);
                     }
-                    lock(&seen).on_speaking(&m, Instant::now());
+                    lock(&seen).on_speaking(&m, clock.now());
                 }
                 m = transitions.recv() => {
                     let Ok(m) = m else { break };
                     let mut s = lock(&seen);
-                    let now = Instant::now();
+                    let now = clock.now();
                     for e in m.entered {
                         s.entered.push((now, e));
                     }
@@ -555,11 +489,11 @@ async fn spawn_senses(
                 }
                 m = reach.recv() => {
                     let Ok(m) = m else { break };
-                    lock(&seen).reach.push((Instant::now(), m.body_part, m.state));
+                    lock(&seen).reach.push((clock.now(), m.body_part, m.state));
                 }
                 m = events.recv() => {
                     let Ok(m) = m else { break };
-                    lock(&seen).ball_events.push((Instant::now(), m.kind));
+                    lock(&seen).ball_events.push((clock.now(), m.kind));
                 }
             }
         }
@@ -594,20 +528,21 @@ async fn expect(
     cfg: &PersonConfig,
     sc: &Scenario,
     e: &Expect,
-    mark: Instant,
+    mark: Moment,
     seen: &Mutex<Seen>,
     ball: &Mutex<Ball>,
     now_s: impl Fn() -> f64,
     shutdown: &mut interfaces::node::Shutdown,
 ) -> anyhow::Result<Result<Figures, String>> {
-    let deadline = Instant::now() + Duration::from_secs_f64(e.timeout_s);
+    let clock = bus.clock();
+    let deadline = clock.now() + Duration::from_secs_f64(e.timeout_s);
     let radius = sc.ball.diameter_m / 2.0;
     let mut last_geometry = String::new();
     loop {
         let mut figures = Figures::default();
         let mut ok = {
             let s = lock(seen);
-            let since = |t: &Instant| *t >= mark;
+            let since = |t: &Moment| *t >= mark;
             let said = e.robot_said.as_ref().is_none_or(|w| {
                 let w = w.to_lowercase();
                 s.said.iter().any(|(t, x)| since(t) && x.contains(&w))
@@ -676,7 +611,7 @@ async fn expect(
         if ok {
             return Ok(Ok(figures));
         }
-        if Instant::now() >= deadline {
+        if clock.now() >= deadline {
             let s = lock(seen);
             let said: Vec<&str> = s
                 .said
@@ -703,7 +638,7 @@ async fn expect(
             )));
         }
         tokio::select! {
-            _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+            _ = clock.sleep(Duration::from_millis(100)) => {}
             _ = shutdown.wait() => anyhow::bail!("stopped while waiting for {}", e.describe()),
         }
     }
@@ -744,92 +679,4 @@ pub fn rotate(q: &[f64; 4], v: &[f64; 3]) -> [f64; 3] {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn event(id: u64, state: SpeakingState, duration_s: f64) -> SpeakingEvent {
-        SpeakingEvent {
-            id,
-            state,
-            duration_s,
-            text: format!("sentence {id}"),
-            ..SpeakingEvent::default()
-        }
-    }
-
-    /// Two sentences in a row: between the end of the first and the start of the queued second
-    /// the robot still has the floor (a person who spoke there was ignored by the dialog as
-    /// the robot's own echo, and had to repeat herself). A sentence whose end never comes (its
-    /// generator was killed) stops holding the floor once its audio would have ended.
-    #[test]
-    fn the_robot_keeps_the_floor_between_sentences_it_has_queued() {
-        let t0 = Instant::now();
-        let mut seen = Seen::default();
-        assert!(!seen.robot_has_the_floor(t0));
-        seen.on_speaking(&event(3, SpeakingState::Queued, 0.0), t0);
-        seen.on_speaking(&event(3, SpeakingState::Started, 1.6), t0);
-        seen.on_speaking(&event(4, SpeakingState::Queued, 0.0), t0);
-        let t1 = t0 + Duration::from_millis(1600);
-        seen.on_speaking(&event(3, SpeakingState::Finished, 1.6), t1);
-        assert!(
-            seen.robot_has_the_floor(t1),
-            "the queued sentence 4 is next"
-        );
-        seen.on_speaking(&event(4, SpeakingState::Started, 1.25), t1);
-        seen.on_speaking(
-            &event(4, SpeakingState::Finished, 1.25),
-            t1 + Duration::from_millis(1250),
-        );
-        assert!(!seen.robot_has_the_floor(t1 + Duration::from_millis(1250)));
-        // Started and never finished: the floor is free 1 s after its audio's end.
-        seen.on_speaking(&event(5, SpeakingState::Started, 2.0), t1);
-        assert!(seen.robot_has_the_floor(t1 + Duration::from_millis(2900)));
-        assert!(!seen.robot_has_the_floor(t1 + Duration::from_millis(3100)));
-    }
-
-    /// Told the robot cannot hear her, she waits until it says it can (a minute at most).
-    #[test]
-    fn she_waits_while_the_robot_cannot_hear_her() {
-        let t0 = Instant::now();
-        let mut seen = Seen::default();
-        let mut e = event(7, SpeakingState::Started, 2.0);
-        e.text = "I can't hear you for a moment. Please wait.".into();
-        seen.on_speaking(&e, t0);
-        seen.on_speaking(
-            &event(7, SpeakingState::Finished, 2.0),
-            t0 + Duration::from_secs(2),
-        );
-        assert!(seen.robot_has_the_floor(t0 + Duration::from_secs(30)));
-        assert!(!seen.robot_has_the_floor(t0 + DEAF_AT_MOST + Duration::from_secs(1)));
-        let mut e = event(8, SpeakingState::Started, 1.0);
-        e.text = "I can hear you again.".into();
-        seen.on_speaking(&e, t0 + Duration::from_secs(31));
-        seen.on_speaking(
-            &event(8, SpeakingState::Finished, 1.0),
-            t0 + Duration::from_secs(32),
-        );
-        assert!(!seen.robot_has_the_floor(t0 + Duration::from_secs(32)));
-    }
-
-    #[test]
-    fn a_timing_is_one_json_object_with_its_action() {
-        let t = Timing {
-            step: 6,
-            what: "ball event \"detected\"".into(),
-            after_s: 1.235,
-            action_step: 5,
-            action: "says \"scan the ball\"".into(),
-        };
-        assert_eq!(
-            serde_json::to_string(&t).unwrap(),
-            r#"{"step":6,"what":"ball event \"detected\"","after_s":1.235,"action_step":5,"action":"says \"scan the ball\""}"#
-        );
-    }
-
-    #[test]
-    fn rotation_by_a_quarter_turn_about_z() {
-        let h = std::f64::consts::FRAC_1_SQRT_2;
-        let r = rotate(&[0.0, 0.0, h, h], &[1.0, 0.0, 0.0]);
-        assert!((r[0]).abs() < 1e-12 && (r[1] - 1.0).abs() < 1e-12 && r[2].abs() < 1e-12);
-    }
-}
+mod tests;

@@ -75,8 +75,9 @@ pub async fn run(
     );
 
     let step = Duration::from_millis(10);
-    let mut tick = tokio::time::interval(step);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    // The field's steps follow the bus clock; ticks missed (a stopped process) are skipped, so
+    // the field's time stands still meanwhile.
+    let mut tick = bus.clock().interval(step);
     let mut buf = vec![0u8; 1024];
     let (mut last_cmd, mut commands, mut passes) = (Vec::new(), 0u64, 0u32);
     let mut events_seen = 0usize;
