@@ -109,7 +109,10 @@ async fn a_still_ball_is_tracked_within_1cm_of_the_sim_truth() {
     // work the simulated camera renders fewer.)
     for w in pairs.windows(2) {
         assert!(w[1].1.frame_seq > w[0].1.frame_seq, "frames out of order");
-        assert!(w[1].1.header.stamp_ns > w[0].1.header.stamp_ns, "stamps out of order");
+        assert!(
+            w[1].1.header.stamp_ns > w[0].1.header.stamp_ns,
+            "stamps out of order"
+        );
     }
     let (a, b) = (&pairs[0].1, &pairs[pairs.len() - 1].1);
     let rate_hz = (b.frame_seq - a.frame_seq) as f64
