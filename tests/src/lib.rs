@@ -695,3 +695,56 @@ impl Drop for SoundServer {
         self.kill();
     }
 }
+
+/// Everything received on a topic, drained in the background (subscriber queues are bounded).
+pub struct Log<T>(pub Arc<Mutex<Vec<T>>>);
+
+impl<T: interfaces::Message + Clone + Send + std::fmt::Debug + 'static> Log<T> {
+    pub async fn follow(bus: &interfaces::Bus, topic: &interfaces::Topic<T>) -> Log<T> {
+        let sub: interfaces::Subscriber<T> = bus.subscriber(topic).await.unwrap();
+        let v = Arc::new(Mutex::new(Vec::new()));
+        let w = v.clone();
+        tokio::spawn(async move {
+            while let Ok(m) = sub.recv().await {
+                w.lock().unwrap().push(m);
+            }
+        });
+        Log(v)
+    }
+    pub fn all(&self) -> Vec<T> {
+        self.0.lock().unwrap().clone()
+    }
+    #[allow(clippy::len_without_is_empty)]
+    pub fn len(&self) -> usize {
+        self.0.lock().unwrap().len()
+    }
+    pub fn last(&self) -> Option<T> {
+        self.0.lock().unwrap().last().cloned()
+    }
+    /// The first message from index `from` on that satisfies `pred`, waiting at most `timeout`.
+    pub async fn wait_from(
+        &self,
+        what: &str,
+        from: usize,
+        timeout: Duration,
+        pred: impl Fn(&T) -> bool,
+    ) -> T {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(m) = self.0.lock().unwrap().iter().skip(from).find(|m| pred(m)) {
+                return m.clone();
+            }
+            if Instant::now() >= deadline {
+                let tail = {
+                    let v = self.0.lock().unwrap();
+                    let tail: Vec<_> = v.iter().skip(v.len().saturating_sub(12)).collect();
+                    format!("{tail:#?}")
+                };
+                panic!(
+                    "timed out after {timeout:?} waiting for {what}; the last messages:\n{tail}"
+                );
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+}

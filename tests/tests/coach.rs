@@ -30,62 +30,9 @@ use interfaces::msg::nao::{
     NaoWorldModel,
 };
 use interfaces::msg::speech::{AudioChunk, SayRequest, SpeakingEvent, SpeakingState};
-use interfaces::{Bus, Message, Subscriber, Topic, topics};
+use interfaces::{Bus, Topic, topics};
 use robocog_tests::*;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// Everything received on a topic, drained in the background (subscriber queues are bounded).
-struct Log<T>(Arc<Mutex<Vec<T>>>);
-
-impl<T: Message + Clone + Send + std::fmt::Debug + 'static> Log<T> {
-    async fn follow(bus: &Bus, topic: &Topic<T>) -> Log<T> {
-        let sub: Subscriber<T> = bus.subscriber(topic).await.unwrap();
-        let v = Arc::new(Mutex::new(Vec::new()));
-        let w = v.clone();
-        tokio::spawn(async move {
-            while let Ok(m) = sub.recv().await {
-                w.lock().unwrap().push(m);
-            }
-        });
-        Log(v)
-    }
-    fn all(&self) -> Vec<T> {
-        self.0.lock().unwrap().clone()
-    }
-    fn len(&self) -> usize {
-        self.0.lock().unwrap().len()
-    }
-    fn last(&self) -> Option<T> {
-        self.0.lock().unwrap().last().cloned()
-    }
-    /// The first message from index `from` on that satisfies `pred`, waiting at most `timeout`.
-    async fn wait_from(
-        &self,
-        what: &str,
-        from: usize,
-        timeout: Duration,
-        pred: impl Fn(&T) -> bool,
-    ) -> T {
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(m) = self.0.lock().unwrap().iter().skip(from).find(|m| pred(m)) {
-                return m.clone();
-            }
-            if Instant::now() >= deadline {
-                let tail = {
-                    let v = self.0.lock().unwrap();
-                    let tail: Vec<_> = v.iter().skip(v.len().saturating_sub(12)).collect();
-                    format!("{tail:#?}")
-                };
-                panic!(
-                    "timed out after {timeout:?} waiting for {what}; the last messages:\n{tail}"
-                );
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    }
-}
 
 /// `text` spoken by espeak-ng (en-us, 160 wpm), resampled to 16 kHz, between 0.6 s and 0.8 s of
 /// faint white noise (about 30 dB below the speech).

@@ -353,7 +353,15 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
     drop(msgs);
 
     // 2. The recording into a fresh replay graph, at the recorded rate, as the README says.
-    let replayed = replay_into_a_fresh_graph(&manifest, &file, &[], span_s, rec_steps.len()).await;
+    let replayed = replay_into_a_fresh_graph(
+        &manifest,
+        &file,
+        REPLAY_GRAPH_OUTPUTS,
+        &[],
+        span_s,
+        rec_steps.len(),
+    )
+    .await;
     let replay_s = replayed.wall_s;
 
     // 3. The Executive took the recorded steps, exactly.
@@ -369,8 +377,15 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
     ] {
         let mut args = mode.to_vec();
         args.extend(["--sync", SYNC]);
-        let fast =
-            replay_into_a_fresh_graph(&manifest, &file, &args, span_s, rec_steps.len()).await;
+        let fast = replay_into_a_fresh_graph(
+            &manifest,
+            &file,
+            REPLAY_GRAPH_OUTPUTS,
+            &args,
+            span_s,
+            rec_steps.len(),
+        )
+        .await;
         assert_same_steps(what, &rec_steps, &fast, &race);
         eprintln!(
             "replay {what}: {:.1} s for {span_s:.1} s recorded; {} steps identical; {}",
@@ -465,21 +480,25 @@ struct Replayed {
     graph_output: String,
 }
 
-/// Replays `file` with `mode` (the pacing flags) into a fresh `launch/touch_replay.toml` graph,
-/// watched from before its Executive starts (its first step is its own), and collects what the
-/// graph published. Waits (bounded) for `expected_steps` steps after the replay ended.
+/// Replays `file` with `mode` (the pacing flags) into a fresh graph of `manifest`, leaving out
+/// `exclude` (what the graph publishes itself), watched from before its Executive starts (its
+/// first step is its own), and collects what the graph published. The watcher also reads
+/// `nao/command` as `nao_bridge`, as live, so a coach Executive sends its commands rather than
+/// holding them. Waits (bounded) for `expected_steps` steps after the replay ended.
 async fn replay_into_a_fresh_graph(
     manifest: &Path,
     file: &Path,
+    exclude: &str,
     mode: &[&str],
     span_s: f64,
     expected_steps: usize,
 ) -> Replayed {
-    let ns = unique_namespace("touchreplay");
+    let ns = unique_namespace("replay");
     let graph = Launch::start(manifest, &ns, &[]);
-    let bus = Bus::open(&graph.connect_args(), "test-replay")
+    let bus = Bus::open(&graph.connect_args(), "nao_bridge")
         .await
         .unwrap();
+    let _commands = collect(bus.subscriber(&topics::NAO_COMMAND).await.unwrap());
     let steps = collect(
         bus.subscriber(&topics::EXECUTIVE_TRANSITIONS)
             .await
@@ -496,7 +515,7 @@ async fn replay_into_a_fresh_graph(
         "replay".into(),
         file.display().to_string(),
         "--exclude".into(),
-        REPLAY_GRAPH_OUTPUTS.into(),
+        exclude.into(),
         "--namespace".into(),
         ns.clone(),
         "--connect".into(),
@@ -562,28 +581,6 @@ nao/command,coach/status,dr/changes,diagnostics";
 /// The coach replay graph's output that a faster replay waits for: the Executive's steps.
 const COACH_SYNC: &str = "executive/transitions";
 
-/// Waits (at most `timeout`) until a message from index `from` on satisfies `pred`.
-async fn wait_in<T: Clone + std::fmt::Debug>(
-    log: &Arc<Mutex<Vec<T>>>,
-    what: &str,
-    from: usize,
-    timeout: Duration,
-    pred: impl Fn(&T) -> bool,
-) -> T {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(m) = log.lock().unwrap().iter().skip(from).find(|m| pred(m)) {
-            return m.clone();
-        }
-        if Instant::now() >= deadline {
-            let v = log.lock().unwrap();
-            let tail: Vec<_> = v.iter().skip(v.len().saturating_sub(8)).collect();
-            panic!("timed out after {timeout:?} waiting for {what}; the last messages:\n{tail:#?}");
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-}
-
 /// An attempt of the coach game recorded into `file`: in PLAYING, a kick at our own goal
 /// (refused), a dribble (sent), the controlled robot falling and getting up (the dribble
 /// resumed), a search for the ball, and a stop. The opponents and the teammate stand still, so
@@ -619,8 +616,8 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
     let bus = Bus::open(&live.connect_args(), "test-coach-record")
         .await
         .unwrap();
-    let says = collect(bus.subscriber(&topics::SPEECH_SAY).await.unwrap());
-    let statuses = collect(bus.subscriber(&topics::COACH_STATUS).await.unwrap());
+    let says = Log::<SayRequest>::follow(&bus, &topics::SPEECH_SAY).await;
+    let statuses = Log::<CoachStatus>::follow(&bus, &topics::COACH_STATUS).await;
     let requests = bus.publisher(&topics::COACH_REQUEST).await.unwrap();
     let t = Duration::from_secs(30);
     let said = |text: &'static str| move |s: &SayRequest| s.text == text;
@@ -633,16 +630,16 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
         ..Default::default()
     };
 
-    wait_in(
-        &statuses,
-        "the Executive in PLAYING",
-        0,
-        Duration::from_secs(60),
-        |s: &CoachStatus| s.state == "coach/playing",
-    )
-    .await;
+    statuses
+        .wait_from(
+            "the Executive in PLAYING",
+            0,
+            Duration::from_secs(60),
+            |s: &CoachStatus| s.state == "coach/playing",
+        )
+        .await;
     // A kick aimed at our own goal: refused.
-    let m = says.lock().unwrap().len();
+    let m = says.len();
     requests
         .publish(&mut CoachRequest {
             aimed: true,
@@ -654,8 +651,7 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
         })
         .await
         .unwrap();
-    wait_in(
-        &says,
+    says.wait_from(
         "the own-goal refusal",
         m,
         t,
@@ -663,35 +659,27 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
     )
     .await;
     // A dribble; the robot falls and gets up; the dribble is resumed.
-    let m = says.lock().unwrap().len();
+    let m = says.len();
     requests
         .publish(&mut request(NaoBody::GoToBallAndDribble))
         .await
         .unwrap();
-    wait_in(
-        &says,
-        "the dribble",
-        m,
-        t,
-        said("Going to the ball to dribble."),
-    )
-    .await;
+    says.wait_from("the dribble", m, t, said("Going to the ball to dribble."))
+        .await;
     tokio::time::sleep(Duration::from_secs(2)).await;
     let field = eventually("the field's pid", Duration::from_secs(10), || {
         component_pid(&live, "spl_field")
     });
-    let m = says.lock().unwrap().len();
+    let m = says.len();
     signal(field, "USR1");
-    wait_in(
-        &says,
+    says.wait_from(
         "the fall",
         m,
         t,
         said("I fell. I will get up and carry on."),
     )
     .await;
-    wait_in(
-        &says,
+    says.wait_from(
         "the resume",
         m,
         t,
@@ -700,16 +688,17 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
     .await;
     // A search for the ball, then a stop.
     tokio::time::sleep(Duration::from_secs(2)).await;
-    let m = says.lock().unwrap().len();
+    let m = says.len();
     requests
         .publish(&mut request(NaoBody::SearchTheBall))
         .await
         .unwrap();
-    wait_in(&says, "the search", m, t, said("Searching for the ball.")).await;
+    says.wait_from("the search", m, t, said("Searching for the ball."))
+        .await;
     tokio::time::sleep(Duration::from_secs(2)).await;
-    let m = says.lock().unwrap().len();
+    let m = says.len();
     requests.publish(&mut request(NaoBody::Stop)).await.unwrap();
-    wait_in(&says, "the stop", m, t, said("Stopping.")).await;
+    says.wait_from("the stop", m, t, said("Stopping.")).await;
     tokio::time::sleep(Duration::from_secs(2)).await;
 
     let status_rec = sigterm_and_wait(&mut rec.0, &log);
@@ -721,11 +710,7 @@ async fn record_a_coach_game(dir: &Path, file: &Path) {
             .lines()
             .find(|l| l.starts_with("recorded "))
             .unwrap_or(""),
-        says.lock()
-            .unwrap()
-            .iter()
-            .map(|s| s.text.clone())
-            .collect::<Vec<_>>()
+        says.all().into_iter().map(|s| s.text).collect::<Vec<_>>()
     );
     drop(live);
 }
@@ -797,8 +782,15 @@ async fn a_replayed_coach_game_takes_the_recorded_steps() {
             &["--as-fast-as-possible", "--sync", COACH_SYNC][..],
         ),
     ] {
-        let replayed =
-            replay_coach_into_a_fresh_graph(&manifest, &file, mode, span_s, rec_steps.len()).await;
+        let replayed = replay_into_a_fresh_graph(
+            &manifest,
+            &file,
+            COACH_REPLAY_GRAPH_OUTPUTS,
+            mode,
+            span_s,
+            rec_steps.len(),
+        )
+        .await;
         assert_same_steps(what, &rec_steps, &replayed, &race);
         eprintln!(
             "coach replay {what}: {:.1} s for {span_s:.1} s recorded; {} steps identical",
@@ -807,74 +799,4 @@ async fn a_replayed_coach_game_takes_the_recorded_steps() {
         );
     }
     eprintln!("test {:.0} s", started.elapsed().as_secs_f64());
-}
-
-/// Replays `file` with `mode` into a fresh `launch/coach_replay.toml` graph, with a reader of
-/// `nao/command` named `nao_bridge` (as live, so the Executive sends rather than holds), and
-/// collects its steps. Waits (bounded) for `expected_steps` steps after the replay ended.
-async fn replay_coach_into_a_fresh_graph(
-    manifest: &Path,
-    file: &Path,
-    mode: &[&str],
-    span_s: f64,
-    expected_steps: usize,
-) -> Replayed {
-    let ns = unique_namespace("coachreplay");
-    let graph = Launch::start(manifest, &ns, &[]);
-    let bus = Bus::open(&graph.connect_args(), "nao_bridge")
-        .await
-        .unwrap();
-    let _commands = collect(bus.subscriber(&topics::NAO_COMMAND).await.unwrap());
-    let steps = collect(
-        bus.subscriber(&topics::EXECUTIVE_TRANSITIONS)
-            .await
-            .unwrap(),
-    );
-    graph
-        .lines
-        .wait_for("the executive", Duration::from_secs(60), |l| {
-            l.contains("executive is up")
-        });
-    let mut args: Vec<String> = vec![
-        "replay".into(),
-        file.display().to_string(),
-        "--exclude".into(),
-        COACH_REPLAY_GRAPH_OUTPUTS.into(),
-        "--namespace".into(),
-        ns.clone(),
-        "--connect".into(),
-        graph.endpoint.clone(),
-        "--progress-s".into(),
-        "0".into(),
-    ];
-    args.extend(mode.iter().map(|a| a.to_string()));
-    let replay_started = Instant::now();
-    let out = tokio::task::block_in_place(|| {
-        run(
-            &bin("robocog"),
-            &args,
-            Duration::from_secs_f64(span_s + 120.0),
-        )
-    });
-    let wall_s = replay_started.elapsed().as_secs_f64();
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "the coach replay ({mode:?}) failed:\n{stderr}"
-    );
-    let until = Instant::now() + Duration::from_secs(10);
-    while steps.lock().unwrap().len() < expected_steps && Instant::now() < until {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    tokio::time::sleep(Duration::from_secs(1)).await;
-    let replayed = Replayed {
-        steps: steps.lock().unwrap().clone(),
-        tracks: Vec::new(),
-        events: Vec::new(),
-        wall_s,
-        stderr,
-        graph_output: graph.lines.all().join("\n"),
-    };
-    drop(graph);
-    replayed
 }
