@@ -242,16 +242,42 @@ fn rust_files(dir: &Path, crate_root: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// Whether a source line lifts the workspace's `unsafe_code = "deny"`.
-fn allows_unsafe(line: &str) -> bool {
-    let l: String = line.chars().filter(|c| !c.is_whitespace()).collect();
-    !l.starts_with("//")
+/// Whether an attribute (its text, joined across lines) lifts the workspace's
+/// `unsafe_code = "deny"`.
+fn allows_unsafe(attribute: &str) -> bool {
+    let l: String = attribute.chars().filter(|c| !c.is_whitespace()).collect();
+    (l.starts_with("#[") || l.starts_with("#!["))
         && ["allow(", "warn(", "expect("]
             .iter()
             .any(|lvl| l.contains(&format!("{lvl}unsafe_code")))
 }
 
-/// The files of `dir` (a crate) whose lines lift the unsafe rule, with the first such line.
+/// The first line of each attribute in `text` that lifts the unsafe rule. An attribute is read
+/// from its `#[` or `#![` to the line that closes it, so one written over several lines counts;
+/// code and string literals do not.
+fn unsafe_attribute_lines(text: &str) -> Vec<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut found = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let t = lines[i].trim_start();
+        if t.starts_with("#[") || t.starts_with("#![") {
+            let start = i;
+            let mut attribute = lines[i].to_string();
+            while !lines[i].trim_end().ends_with(']') && i + 1 < lines.len() {
+                i += 1;
+                attribute.push_str(lines[i]);
+            }
+            if allows_unsafe(&attribute) {
+                found.push(start + 1);
+            }
+        }
+        i += 1;
+    }
+    found
+}
+
+/// The files of `dir` (a crate) whose attributes lift the unsafe rule, with the first such line.
 fn unsafe_allowances(dir: &Path) -> Vec<(PathBuf, usize)> {
     let mut files = Vec::new();
     rust_files(dir, dir, &mut files);
@@ -259,8 +285,8 @@ fn unsafe_allowances(dir: &Path) -> Vec<(PathBuf, usize)> {
         .into_iter()
         .filter_map(|f| {
             let text = std::fs::read_to_string(&f).ok()?;
-            let n = text.lines().position(allows_unsafe)?;
-            Some((f, n + 1))
+            let first = *unsafe_attribute_lines(&text).first()?;
+            Some((f, first))
         })
         .collect()
 }
@@ -316,7 +342,7 @@ fn only_the_listed_crates_allow_unsafe_code() {
 }
 
 #[test]
-fn the_unsafe_scan_finds_an_allowance_and_ignores_comments() {
+fn the_unsafe_scan_finds_an_allowance_and_ignores_comments_and_strings() {
     assert!(allows_unsafe("#![allow(unsafe_code)]"));
     assert!(allows_unsafe("#[allow( unsafe_code )]"));
     assert!(allows_unsafe("#[expect(unsafe_code, reason = \"ffi\")]"));
@@ -324,10 +350,15 @@ fn the_unsafe_scan_finds_an_allowance_and_ignores_comments() {
         "// #![allow(unsafe_code)] is for the listed crates"
     ));
     assert!(!allows_unsafe("unsafe_code = \"deny\""));
+    assert!(!allows_unsafe(
+        "assert!(allows_unsafe(\"#![allow(unsafe_code)]\"));"
+    ));
+    let text = "//! x\n#![allow(unsafe_code)]\nfn f() {}\n#[expect(\n    unsafe_code,\n    reason = \"ffi\"\n)]\nfn g() {}\nconst S: &str = \"#[allow(unsafe_code)]\";\n";
+    assert_eq!(unsafe_attribute_lines(text), vec![2, 4]);
     let dir = std::env::temp_dir().join(format!("robocog-layout-{}", std::process::id()));
     let src = dir.join("src");
     std::fs::create_dir_all(&src).expect("temp folder");
-    std::fs::write(src.join("lib.rs"), "//! x\n#![allow(unsafe_code)]\n").expect("write");
+    std::fs::write(src.join("lib.rs"), text).expect("write");
     let found = unsafe_allowances(&dir);
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(found.len(), 1, "{found:?}");
