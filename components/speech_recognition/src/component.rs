@@ -199,7 +199,17 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     let out = bus.publisher(&topics::SPEECH_UTTERANCE).await?;
     let activity = bus.publisher(&topics::SPEECH_ACTIVITY).await?;
     let model = &recognizer.config().acoustic_model;
-    if model.stock {
+    if model.stock
+        && adapted_model_dir()
+            .join(crate::model::PROVENANCE_FILE)
+            .is_file()
+    {
+        tracing::info!(
+            "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the adapted model at {} is not used",
+            model.describe(),
+            adapted_model_dir().display()
+        );
+    } else if model.stock {
         tracing::warn!(
             "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
             model.describe(),
