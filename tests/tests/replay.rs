@@ -167,6 +167,31 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
+/// The replay graph passes `robocog check` (its external inputs declared).
+fn assert_checks(manifest: &Path) {
+    let out = run(
+        &bin("robocog"),
+        &["check".into(), manifest.display().to_string()],
+        Duration::from_secs(60),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Every message of a recording, which must have dropped none.
+fn read_whole_recording(file: &Path) -> Vec<Rec> {
+    let (_, msgs, meta) = read_recording(file);
+    for (k, v) in &meta {
+        if k.starts_with("dropped/") {
+            assert_eq!(v, "0", "the recorder dropped messages of {k}");
+        }
+    }
+    msgs
+}
+
 /// Deletes a (large) recording when the test ends, passed or failed.
 struct RemoveOnDrop(PathBuf);
 
@@ -285,30 +310,15 @@ async fn a_replayed_touch_game_takes_the_recorded_steps() {
     let started = Instant::now();
     let dir = scratch(&unique_namespace("touchreplay"));
 
-    // The replay graph passes `robocog check` (its external inputs declared).
     let manifest = repo().join("launch/touch_replay.toml");
-    let out = run(
-        &bin("robocog"),
-        &["check".into(), manifest.display().to_string()],
-        Duration::from_secs(60),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_checks(&manifest);
 
     // 1. A game, recorded.
     let file = dir.join("game.mcap");
     let _cleanup = RemoveOnDrop(file.clone());
     record_a_game(&dir, &file);
     let recorded_at = started.elapsed();
-    let (_, msgs, meta) = read_recording(&file);
-    for (k, v) in &meta {
-        if k.starts_with("dropped/") {
-            assert_eq!(v, "0", "the recorder dropped messages of {k}");
-        }
-    }
+    let msgs = read_whole_recording(&file);
     fn of<'a>(msgs: &'a [Rec], topic: &'a str) -> impl Iterator<Item = &'a Rec> {
         msgs.iter().filter(move |m| m.topic == topic)
     }
@@ -724,26 +734,12 @@ async fn a_replayed_coach_game_takes_the_recorded_steps() {
     let started = Instant::now();
     let dir = scratch(&unique_namespace("coachreplay"));
     let manifest = repo().join("launch/coach_replay.toml");
-    let out = run(
-        &bin("robocog"),
-        &["check".into(), manifest.display().to_string()],
-        Duration::from_secs(60),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_checks(&manifest);
 
     let file = dir.join("coach.mcap");
     let _cleanup = RemoveOnDrop(file.clone());
     record_a_coach_game(&dir, &file).await;
-    let (_, msgs, meta) = read_recording(&file);
-    for (k, v) in &meta {
-        if k.starts_with("dropped/") {
-            assert_eq!(v, "0", "the recorder dropped messages of {k}");
-        }
-    }
+    let msgs = read_whole_recording(&file);
     let rec_transitions: Vec<StateTransition> = msgs
         .iter()
         .filter(|m| m.topic == "executive/transitions")
