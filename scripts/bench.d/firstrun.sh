@@ -13,7 +13,13 @@ rev="$(git rev-parse --short HEAD)"
 keep="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/bench"
 mkdir -p "$keep"
 work="$(mktemp -d "${TMPDIR:-/tmp}/robocog-firstrun.XXXXXX")"
-trap 'rm -rf "$work"' EXIT
+# The game's background build of the speech model runs on after the game: stopped with the run.
+cleanup() {
+  pkill -f "$work/target/release/speech_model" 2>/dev/null || true
+  sleep 1
+  rm -rf "$work" 2>/dev/null || true
+}
+trap cleanup EXIT
 step "cloning $rev into $work (a fresh clone, an empty build folder and model cache)"
 git clone -q "$ROOT" "$work/robocog"
 free_gb=$(($(df -Pk "$work" | awk 'NR==2 {print $4}') / 1024 / 1024))
