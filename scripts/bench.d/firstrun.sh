@@ -5,7 +5,7 @@
 # the last run of another commit kept in the cache (the previous release, when one was measured).
 # Not emptied: the Debian packages already installed and cargo's download cache (~/.cargo), so
 # the packages phase and the crates' downloads are a fresh machine's lower bound.
-# Takes 15 to 30 minutes on two cores. Usage: scripts/bench firstrun
+# About 10 minutes on two cores with the crates already downloaded. Usage: scripts/bench firstrun
 set -euo pipefail
 source "$(dirname "$0")/../lib.sh"
 cd "$ROOT"
