@@ -476,3 +476,67 @@ fn a_scenario_is_checked_without_a_bus() {
         String::from_utf8_lossy(&bad.stderr)
     );
 }
+
+/// `robocog check --binaries` lists the programs a graph starts (what `scripts/run` builds):
+/// enabled components only, each once, and a `--set` that enables one adds it; a broken
+/// manifest is still an error.
+#[test]
+fn binaries_lists_the_programs_the_graph_starts() {
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../launch/touch_the_ball.toml")
+        .display()
+        .to_string();
+    let programs = |extra: &[&str]| {
+        let mut args = vec!["check".to_string(), "--binaries".into(), manifest.clone()];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let out = run(&bin("robocog"), &args, Duration::from_secs(30));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .map(str::to_string)
+            .collect::<Vec<_>>()
+    };
+    let plain = programs(&[]);
+    for p in [
+        "executive",
+        "joint_motor",
+        "rgbd",
+        "speech_recognition",
+        "loki_world",
+    ] {
+        assert!(plain.iter().any(|l| l == p), "{p} missing: {plain:?}");
+    }
+    assert!(!plain.iter().any(|l| l == "viewer"), "{plain:?}");
+    let mut sorted = plain.clone();
+    sorted.sort();
+    sorted.dedup();
+    assert_eq!(sorted, plain, "once each, sorted");
+    let viewed = programs(&["--set", "view=true"]);
+    assert!(viewed.iter().any(|l| l == "viewer"), "{viewed:?}");
+
+    let ns = unique_namespace("check-binaries");
+    let bad = write_manifest(
+        &scratch(&ns),
+        "graph.toml",
+        "[graph]\nname = \"x\"\nbogus = 1\n",
+    );
+    let out = run(
+        &bin("robocog"),
+        &[
+            "check".into(),
+            "--binaries".into(),
+            bad.display().to_string(),
+        ],
+        Duration::from_secs(30),
+    );
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("bogus"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
