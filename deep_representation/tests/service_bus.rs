@@ -572,7 +572,7 @@ async fn proposals_predicates_forks_pddl_and_snapshots() {
         .call(
             &topics::DR_RESTORE,
             &SnapshotData {
-                snapshot: (&empty).into(),
+                snapshot: empty.clone(),
                 ..Default::default()
             },
             T,

@@ -24,7 +24,7 @@
 //! the forearm, hand and fingers are still checked against the torso).
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use robot_model::{RobotModel, Shape};
+use robot_model::{RobotModel, Shape, TransformIso};
 
 /// Spheres up to this radius (m) are frame markers, not bodies.
 pub const MARKER_RADIUS_M: f64 = 0.005;
@@ -266,7 +266,7 @@ impl SelfCollision {
                 l.collision
                     .iter()
                     .filter_map(|c| {
-                        let o = &c.origin;
+                        let o = &c.origin.to_iso();
                         match c.shape {
                             Shape::Sphere { radius_m } if radius_m > MARKER_RADIUS_M => {
                                 let p = Point3::from(o.translation.vector);

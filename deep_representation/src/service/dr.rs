@@ -6,13 +6,13 @@ use interfaces::msg::dr as m;
 use interfaces::{Bus, ServiceError};
 use tokio::sync::{RwLock, mpsc};
 
-use world_model::bus::{reason_code, transform_from_iso};
+use world_model::bus::{check_change, check_snapshot, reason_code};
 use world_model::error::DrError;
 use world_model::graph::{At, EdgeKind, SceneGraph};
 use world_model::pddl::{Atom, export_problem};
 use world_model::persist::{LogLine, Store};
 use world_model::predicates::{self, PredicateConfig, PredicateKind, fork_report};
-use world_model::types::{self, NodeType, Pose, Proposal, Stamp};
+use world_model::types::{self, NodeType, Stamp, StructuralChange, Transform, TransformIso};
 
 fn dr_err(e: DrError) -> ServiceError {
     match e {
@@ -42,13 +42,12 @@ fn attr_checked(a: &m::Attribute) -> Result<types::AttrValue, ServiceError> {
             a.node, a.key
         )));
     }
-    Ok((&a.value).into())
+    Ok(a.value.clone())
 }
 
-fn pose_checked(what: &str, t: &m::Transform) -> Result<Pose, ServiceError> {
-    let p = Pose::from(t);
-    if p.is_valid() {
-        Ok(p)
+fn pose_checked(what: &str, t: &Transform) -> Result<Transform, ServiceError> {
+    if t.is_valid() {
+        Ok(*t)
     } else {
         Err(ServiceError::bad_request(format!(
             "pose of `{what}`: not finite, or a zero quaternion"
@@ -56,10 +55,11 @@ fn pose_checked(what: &str, t: &m::Transform) -> Result<Pose, ServiceError> {
     }
 }
 
-/// A bus structural change as a library proposal (`BadRequest` for what the library cannot
-/// hold: an attribute given twice, a number that is not finite).
-fn proposal_checked(c: &m::StructuralChange) -> Result<Proposal, ServiceError> {
-    Proposal::try_from(c).map_err(|e| ServiceError::bad_request(e.to_string()))
+/// A structural change the graph can hold (`BadRequest` for an attribute given twice, a number
+/// that is not finite).
+fn proposal_checked(c: &StructuralChange) -> Result<StructuralChange, ServiceError> {
+    check_change(c).map_err(|e| ServiceError::bad_request(e.to_string()))?;
+    Ok(c.clone())
 }
 
 // ---------------------------------------------------------------- the live state
@@ -118,9 +118,9 @@ impl Dr {
             let mut msg = m::DrChange {
                 header: interfaces::Header::new("world"),
                 seq: l.seq,
-                event: ev.into(),
+                event: ev.clone(),
             };
-            msg.header.stamp_ns = ev.stamp().0.min(i64::MAX as u64) as i64;
+            msg.header.stamp_ns = ev.stamp_ns().min(i64::MAX as u64) as i64;
             if self.changes.send(msg).await.is_err() {
                 self.bus.counters().incr("dr/changes_not_published");
             }
@@ -171,10 +171,7 @@ impl Dr {
             (EdgeKind::Joint { joint, .. }, _) => ("joint", joint.clone()),
         };
         // `world` has no description (no parent): the default.
-        let spec = g
-            .node_spec(&req.name)
-            .map(|s| m::NodeSpec::from(&s))
-            .unwrap_or_default();
+        let spec = g.node_spec(&req.name).unwrap_or_default();
         Ok(m::NodeInfo {
             header: interfaces::Header::new(parent.clone()),
             name: n.name.clone(),
@@ -192,14 +189,14 @@ impl Dr {
                 n.edge.value()
             },
             joint,
-            pose: transform_from_iso(n.edge.current()),
+            pose: Transform::from_iso(n.edge.current()),
             attributes: n
                 .attrs
                 .iter()
                 .map(|(k, v)| m::Attribute {
                     node: n.name.clone(),
                     key: k.clone(),
-                    value: v.into(),
+                    value: v.clone(),
                 })
                 .collect(),
             spec,
@@ -229,7 +226,7 @@ impl Dr {
             target: req.target,
             source: req.source,
             stamp_ns,
-            transform: transform_from_iso(&iso),
+            transform: Transform::from_iso(&iso),
         })
     }
 
@@ -276,10 +273,10 @@ impl Dr {
             g.set_joint(&j.joint, j.value, stamp)?;
         }
         for p in poses {
-            g.set_pose(&p.node, &Pose::from(&p.pose).to_iso(), stamp)?;
+            g.set_pose(&p.node, &p.pose.to_iso(), stamp)?;
         }
         for a in attributes {
-            g.set_attr(&a.node, &a.key, (&a.value).into(), stamp)?;
+            g.set_attr(&a.node, &a.key, a.value.clone(), stamp)?;
         }
         Ok(())
     }
@@ -467,7 +464,7 @@ impl Dr {
         let live = self.live.read().await;
         Ok(m::SnapshotData {
             header: Default::default(),
-            snapshot: (&live.graph.snapshot()).into(),
+            snapshot: live.graph.snapshot(),
             last_seq: live.last_seq,
         })
     }
@@ -475,7 +472,8 @@ impl Dr {
     /// `dr/restore`: replace the live graph with a snapshot (`BadRequest` if it does not
     /// restore); persisted as a `restore` line, then compacted; published as `restored`.
     pub async fn restore(&self, req: m::SnapshotData) -> Result<m::SnapshotData, ServiceError> {
-        let snap = types::Snapshot::try_from(&req.snapshot)
+        let snap = req.snapshot;
+        check_snapshot(&snap)
             .map_err(|e| ServiceError::bad_request(format!("not a valid snapshot: {e}")))?;
         let mut graph = SceneGraph::restore(&snap).map_err(dr_err)?;
         graph.set_history_len(self.history_len);
@@ -511,7 +509,7 @@ impl Dr {
         }
         Ok(m::SnapshotData {
             header: Default::default(),
-            snapshot: (&live.graph.snapshot()).into(),
+            snapshot: live.graph.snapshot(),
             last_seq: seq,
         })
     }

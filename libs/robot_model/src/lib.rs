@@ -35,7 +35,6 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix6xX, Translation3, Unit, UnitQuaternion, Vector3};
-use serde::{Deserialize, Serialize};
 
 use std::path::PathBuf;
 use thiserror::Error;
@@ -123,32 +122,38 @@ pub fn find_model(explicit: Option<&Path>, file: &str) -> PathBuf {
         .join(file)
 }
 
-/// Kind of a URDF joint, and a camera the model declares: the bus' own types.
-pub use interfaces::msg::dr::{CameraIntrinsics, JointKind};
+/// Joint kinds and limits, cameras and collision shapes: the bus' own types (`interfaces::msg::dr`),
+/// which the deep representation holds as they are.
+pub use interfaces::msg::dr::{
+    CameraIntrinsics, CollisionShape, JointKind, JointLimits, Shape, Transform,
+};
 
-/// Position, velocity and effort limits of a joint (rad or m; rad/s or m/s; N m or N).
-///
-/// Continuous joints have infinite position limits.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct JointLimits {
-    /// Lower position limit (rad or m).
-    pub lower: f64,
-    /// Upper position limit (rad or m).
-    pub upper: f64,
-    /// Maximum speed (rad/s or m/s).
-    pub velocity: f64,
-    /// Maximum effort (N m or N).
-    pub effort: f64,
+/// A [`Transform`] (the bus' rigid transform) to and from a nalgebra isometry.
+pub trait TransformIso {
+    /// From an isometry.
+    fn from_iso(iso: &Isometry3<f64>) -> Self;
+    /// As an isometry, the quaternion normalised. Check [`Transform::is_valid`] first: a zero
+    /// quaternion gives NaN.
+    fn to_iso(&self) -> Isometry3<f64>;
 }
 
-impl JointLimits {
-    /// Whether `q` is inside `[lower, upper]`.
-    pub fn contains(&self, q: f64) -> bool {
-        q >= self.lower && q <= self.upper
+impl TransformIso for Transform {
+    fn from_iso(iso: &Isometry3<f64>) -> Self {
+        let q = iso.rotation.coords;
+        let t = iso.translation.vector;
+        Transform {
+            translation_m: [t.x, t.y, t.z],
+            rotation_xyzw: [q.x, q.y, q.z, q.w],
+        }
     }
-    /// `q` clamped into `[lower, upper]`.
-    pub fn clamp(&self, q: f64) -> f64 {
-        q.clamp(self.lower, self.upper)
+
+    fn to_iso(&self) -> Isometry3<f64> {
+        let [x, y, z, w] = self.rotation_xyzw;
+        let [tx, ty, tz] = self.translation_m;
+        Isometry3::from_parts(
+            Translation3::new(tx, ty, tz),
+            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)),
+        )
     }
 }
 
@@ -166,50 +171,6 @@ pub fn joint_motion(kind: JointKind, axis: &Unit<Vector3<f64>>, q: f64) -> Isome
         ),
         JointKind::Fixed => Isometry3::identity(),
     }
-}
-
-/// Simple collision geometry, in the link frame (m).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "shape", rename_all = "snake_case")]
-pub enum Shape {
-    /// Box centred on its origin, full side lengths (m).
-    Box {
-        /// Side lengths along x, y, z (m).
-        size_m: [f64; 3],
-    },
-    /// Cylinder along its local z axis, centred on its origin.
-    Cylinder {
-        /// Radius (m).
-        radius_m: f64,
-        /// Length (m).
-        length_m: f64,
-    },
-    /// Capsule along its local z axis (URDF 1.2).
-    Capsule {
-        /// Radius (m).
-        radius_m: f64,
-        /// Length of the cylindrical part (m).
-        length_m: f64,
-    },
-    /// Sphere centred on its origin.
-    Sphere {
-        /// Radius (m).
-        radius_m: f64,
-    },
-    /// A mesh file (kept by name; robocog does no mesh collision).
-    Mesh {
-        /// The URDF filename attribute.
-        filename: String,
-    },
-}
-
-/// One collision element of a link: a shape placed by `origin` in the link frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CollisionShape {
-    /// Pose of the shape in the link frame.
-    pub origin: Isometry3<f64>,
-    /// The shape.
-    pub shape: Shape,
 }
 
 /// A link of a robot model.
@@ -303,7 +264,7 @@ impl RobotModel {
                     .collision
                     .iter()
                     .map(|c| CollisionShape {
-                        origin: pose_to_iso(&c.origin),
+                        origin: Transform::from_iso(&pose_to_iso(&c.origin)),
                         shape: convert_geometry(&c.geometry),
                     })
                     .collect(),

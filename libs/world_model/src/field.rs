@@ -10,7 +10,7 @@ use serde::Deserialize;
 
 use crate::error::{DrError, Result};
 use crate::graph::SceneGraph;
-use crate::types::{AttrValue, EdgeSpec, NodeSpec, NodeType, Pose, Proposal, Stamp, attr};
+use crate::types::{AttrValue, Edge, NodeSpec, NodeType, Stamp, StructuralChange, Transform, attr};
 
 /// A landmark of the field file.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -161,26 +161,15 @@ impl FieldModel {
         &self,
         g: &mut SceneGraph,
         parent: &str,
-        pose: Pose,
+        pose: Transform,
         stamp: Stamp,
     ) -> Result<()> {
-        let mut field = NodeSpec {
-            name: "field".into(),
-            node_type: NodeType::Field.name().into(),
-            parent: parent.into(),
-            edge: EdgeSpec::Fixed { origin: pose },
-            attrs: Default::default(),
-            camera: None,
-            collision: Vec::new(),
-        };
-        field.attrs.insert(
-            attr::LENGTH_M.into(),
-            AttrValue::Float(self.length_mm / 1000.0),
-        );
-        field.attrs.insert(
-            attr::WIDTH_M.into(),
-            AttrValue::Float(self.width_mm / 1000.0),
-        );
+        let field = NodeSpec {
+            edge: Edge::Fixed { origin: pose },
+            ..NodeSpec::free("field", NodeType::Field, parent, Transform::default())
+        }
+        .with_attr(attr::LENGTH_M, AttrValue::Float(self.length_mm / 1000.0))
+        .with_attr(attr::WIDTH_M, AttrValue::Float(self.width_mm / 1000.0));
         let mut specs = vec![field];
         for l in &self.landmarks {
             let t = if l.class == "goalpost" {
@@ -189,28 +178,22 @@ impl FieldModel {
                 NodeType::Landmark
             };
             let mut s = NodeSpec {
-                name: l.name.clone(),
-                node_type: t.name().into(),
-                parent: "field".into(),
-                edge: EdgeSpec::Fixed {
-                    origin: Pose::from_translation(l.x_mm / 1000.0, l.y_mm / 1000.0, 0.0),
+                edge: Edge::Fixed {
+                    origin: Transform::from_translation(l.x_mm / 1000.0, l.y_mm / 1000.0, 0.0),
                 },
-                attrs: Default::default(),
-                camera: None,
-                collision: Vec::new(),
-            };
-            s.attrs
-                .insert("class".into(), AttrValue::Text(l.class.clone()));
+                ..NodeSpec::free(&l.name, t, "field", Transform::default())
+            }
+            .with_attr("class", AttrValue::Text(l.class.clone()));
             if t == NodeType::Goalpost {
-                s.attrs.insert(
-                    attr::RADIUS_M.into(),
+                s = s.with_attr(
+                    attr::RADIUS_M,
                     AttrValue::Float(self.goalpost_diameter_mm / 2000.0),
                 );
             }
             specs.push(s);
         }
         for s in specs {
-            g.propose(Proposal::AddNode { spec: Box::new(s) }, stamp)
+            g.propose(StructuralChange::AddNode(Box::new(s)), stamp)
                 .map_err(|r| DrError::Rejected(Box::new(r)))?;
         }
         Ok(())
@@ -250,7 +233,7 @@ mod tests {
         }
         assert_eq!(f.lines().len(), 5 + 12);
         let mut g = SceneGraph::new();
-        f.add_to_graph(&mut g, "world", Pose::default(), Stamp(0))
+        f.add_to_graph(&mut g, "world", Transform::default(), Stamp(0))
             .unwrap();
         let p = g
             .transform("world", "opponent_goalpost_left", crate::graph::At::Latest)

@@ -4,8 +4,8 @@
 //! surroundings and the agents in them are represented. Perception components update it, the
 //! executive and the IK read it, and anyone can take a private copy of it ([`graph::SceneGraph::fork`])
 //! to simulate virtual actions before doing them for real. This crate is the pure library: no
-//! bus connection, no clock, no threads (only the conversions of its types to the bus messages,
-//! [`mod@bus`]). The `deep_representation` process serves it on the bus; the viewer mirrors it.
+//! bus connection, no clock, no threads. The `deep_representation` process serves it on the
+//! bus; the viewer mirrors it.
 //!
 //! ## Frames
 //!
@@ -48,7 +48,7 @@
 //!
 //! - Joint values, poses and attributes go straight in ([`graph::SceneGraph::set_joint`],
 //!   [`graph::SceneGraph::set_pose`], [`graph::SceneGraph::set_attr`]).
-//! - Structural changes are [`types::Proposal`]s, accepted or rejected with a
+//! - Structural changes are [`types::StructuralChange`]s, accepted or rejected with a
 //!   [`graph::RejectReason`]: unique valid names, the parent exists, the type is known, no cycles,
 //!   no removal of nodes with children, of `world` or of robot links, finite geometry.
 //! - With the log enabled, every accepted change is a serde [`types::ChangeEvent`]; a service
@@ -74,8 +74,10 @@
 //! unique too. Keep them in `[a-z0-9_]` so they map one to one to PDDL names. Models live in
 //! `models/` at the repository root: `loki.urdf`, `spl_field.toml`.
 //!
-//! Bus-facing data types are all in [`types`]; their CDR mirrors for the bus are in
-//! `interfaces::msg::dr`, and [`mod@bus`] converts between the two (the one place that does).
+//! The data types (node descriptions, changes, events, snapshots) are the bus' own,
+//! `interfaces::msg::dr`, re-exported in [`types`]: one definition for the library, the service,
+//! the wire and the state folder. [`mod@bus`] checks what comes from outside (numbers the graph
+//! needs finite, attributes given twice).
 //!
 //! ## The service
 //!

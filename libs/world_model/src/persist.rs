@@ -5,7 +5,7 @@
 //!
 //! | file | holds |
 //! |---|---|
-//! | `snapshot.json` | the newest snapshot: `{"format":"robocog-dr-state","last_seq":N,"snapshot":{..}}` (the library's [`Snapshot`] plus the sequence number of the last change it includes) |
+//! | `snapshot.json` | the newest snapshot: `{"format":"robocog-dr-state","version":2,"last_seq":N,"snapshot":{..}}` (the library's [`Snapshot`] plus the sequence number of the last change it includes) |
 //! | `snapshot.prev.json` | the snapshot before it (the fallback when the newest is corrupt) |
 //! | `changes.log` | one JSON line per change since `snapshot.json`: `{"seq":N,"event":{..ChangeEvent..}}`, or `{"seq":N,"restore":{..Snapshot..}}` when the whole graph was replaced |
 //! | `changes.prev.log` | the change lines since `snapshot.prev.json` (so the fallback loses nothing) |
@@ -40,7 +40,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::DrError;
-use crate::graph::SceneGraph;
+use crate::graph::{SNAPSHOT_VERSION, SceneGraph};
 use crate::types::{ChangeEvent, Snapshot};
 
 /// The newest snapshot.
@@ -60,6 +60,9 @@ pub const STATE_FORMAT: &str = "robocog-dr-state";
 pub struct StateFile {
     /// Always [`STATE_FORMAT`].
     pub format: String,
+    /// [`SNAPSHOT_VERSION`] (files of the first format have none).
+    #[serde(default)]
+    pub version: u32,
     /// Sequence number of the newest change included.
     pub last_seq: u64,
     /// The graph.
@@ -163,14 +166,35 @@ pub struct Store {
 
 fn load_state(path: &Path) -> Result<(SceneGraph, u64), String> {
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    let state: StateFile =
+    #[derive(Deserialize)]
+    struct Head {
+        #[serde(default)]
+        format: String,
+        #[serde(default)]
+        version: u32,
+    }
+    let head: Head =
         serde_json::from_str(&text).map_err(|e| format!("not a valid state file: {e}"))?;
-    if state.format != STATE_FORMAT {
+    if head.format != STATE_FORMAT {
         return Err(format!(
             "format is `{}`, expected `{STATE_FORMAT}`",
-            state.format
+            head.format
         ));
     }
+    if head.version != SNAPSHOT_VERSION {
+        return Err(format!(
+            "version {} (expected {SNAPSHOT_VERSION}): {}",
+            head.version,
+            if head.version < SNAPSHOT_VERSION {
+                "written by an older robocog, whose DR types differed; set aside, the DR starts \
+                 from its scene"
+            } else {
+                "written by a newer robocog"
+            }
+        ));
+    }
+    let state: StateFile =
+        serde_json::from_str(&text).map_err(|e| format!("not a valid state file: {e}"))?;
     let g = SceneGraph::restore(&state.snapshot).map_err(|e| e.to_string())?;
     Ok((g, state.last_seq))
 }
@@ -333,6 +357,7 @@ impl Store {
     pub fn compact(&mut self, graph: &SceneGraph, last_seq: u64) -> Result<(), PersistError> {
         let state = StateFile {
             format: STATE_FORMAT.into(),
+            version: SNAPSHOT_VERSION,
             last_seq,
             snapshot: graph.snapshot(),
         };
@@ -372,7 +397,7 @@ impl Store {
 mod tests {
     use super::*;
     use crate::At;
-    use crate::types::{AttrValue, NodeSpec, NodeType, Pose, Proposal, Stamp};
+    use crate::types::{AttrValue, NodeSpec, NodeType, Stamp, StructuralChange, Transform};
 
     /// A fresh folder (or file path) in the temp dir, removed when the test ends.
     struct Scratch(PathBuf);
@@ -417,11 +442,11 @@ mod tests {
     fn scene() -> crate::Result<SceneGraph> {
         let mut g = SceneGraph::new();
         g.propose(
-            Proposal::add(NodeSpec::free(
+            StructuralChange::add(NodeSpec::free(
                 "ball",
                 NodeType::Ball,
                 "world",
-                Pose::from_translation(1.0, 0.0, 0.0),
+                Transform::from_translation(1.0, 0.0, 0.0),
             )),
             Stamp(1),
         )
@@ -455,11 +480,11 @@ mod tests {
 
     fn add_cup(g: &mut SceneGraph) {
         g.propose(
-            Proposal::add(NodeSpec::free(
+            StructuralChange::add(NodeSpec::free(
                 "cup",
                 NodeType::Object,
                 "world",
-                Pose::from_translation(0.5, 0.5, 0.8),
+                Transform::from_translation(0.5, 0.5, 0.8),
             )),
             Stamp(10),
         )
@@ -571,7 +596,7 @@ mod tests {
         let good = LogLine {
             seq: 3,
             event: Some(ChangeEvent::AttributeSet {
-                stamp: Stamp(12),
+                stamp_ns: 12,
                 node: "ball".into(),
                 key: "color".into(),
                 value: AttrValue::Text("green".into()),

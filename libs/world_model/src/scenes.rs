@@ -12,17 +12,12 @@ use nalgebra::Isometry3;
 use crate::error::{DrError, Result};
 use crate::field::FieldModel;
 use crate::graph::SceneGraph;
-use crate::types::{AttrValue, NodeSpec, NodeType, Pose, Proposal, Stamp, attr};
+use crate::types::{AttrValue, NodeSpec, NodeType, Stamp, StructuralChange, Transform, attr};
 use robot_model::RobotModel;
 
 fn add(g: &mut SceneGraph, spec: NodeSpec, stamp: Stamp) -> Result<()> {
-    g.propose(
-        Proposal::AddNode {
-            spec: Box::new(spec),
-        },
-        stamp,
-    )
-    .map_err(|r| DrError::Rejected(Box::new(r)))
+    g.propose(StructuralChange::AddNode(Box::new(spec)), stamp)
+        .map_err(|r| DrError::Rejected(Box::new(r)))
 }
 
 /// The touch-the-ball start state (see the module docs).
@@ -35,7 +30,7 @@ pub fn touch_the_ball(loki: &RobotModel, stamp: Stamp) -> Result<SceneGraph> {
             "player",
             NodeType::Human,
             "world",
-            Pose::planar(1.5, 0.0, std::f64::consts::PI),
+            Transform::planar(1.5, 0.0, std::f64::consts::PI),
         ),
         stamp,
     )?;
@@ -45,7 +40,7 @@ pub fn touch_the_ball(loki: &RobotModel, stamp: Stamp) -> Result<SceneGraph> {
             "ball",
             NodeType::Ball,
             "world",
-            Pose::from_translation(0.8, 0.2, 1.1),
+            Transform::from_translation(0.8, 0.2, 1.1),
         )
         .with_attr(attr::RADIUS_M, AttrValue::Float(0.035))
         .with_attr(attr::COLOR, AttrValue::Text("yellow".into())),
@@ -57,7 +52,7 @@ pub fn touch_the_ball(loki: &RobotModel, stamp: Stamp) -> Result<SceneGraph> {
 /// The coach-game state (see the module docs). Positions in metres in the field frame.
 pub fn coach_game(field: &FieldModel, stamp: Stamp) -> Result<SceneGraph> {
     let mut g = SceneGraph::new();
-    field.add_to_graph(&mut g, "world", Pose::default(), stamp)?;
+    field.add_to_graph(&mut g, "world", Transform::default(), stamp)?;
     let robots = [
         ("nao_1", 1, -2.0, 1.0, 0.0),
         ("nao_2", 1, -1.0, -0.5, 0.3),
@@ -67,7 +62,7 @@ pub fn coach_game(field: &FieldModel, stamp: Stamp) -> Result<SceneGraph> {
     for (name, team, x, y, th) in robots {
         add(
             &mut g,
-            NodeSpec::free(name, NodeType::Robot, "field", Pose::planar(x, y, th))
+            NodeSpec::free(name, NodeType::Robot, "field", Transform::planar(x, y, th))
                 .with_attr(attr::TEAM, AttrValue::Int(team))
                 .with_attr(attr::FALLEN, AttrValue::Bool(name == "opponent_2")),
             stamp,
@@ -79,7 +74,7 @@ pub fn coach_game(field: &FieldModel, stamp: Stamp) -> Result<SceneGraph> {
             "ball",
             NodeType::Ball,
             "field",
-            Pose::from_translation(0.5, -0.3, 0.05),
+            Transform::from_translation(0.5, -0.3, 0.05),
         )
         .with_attr(
             attr::RADIUS_M,
@@ -93,7 +88,7 @@ pub fn coach_game(field: &FieldModel, stamp: Stamp) -> Result<SceneGraph> {
             "coach",
             NodeType::Human,
             "field",
-            Pose::planar(0.0, -3.6, -1.57),
+            Transform::planar(0.0, -3.6, -1.57),
         ),
         stamp,
     )?;

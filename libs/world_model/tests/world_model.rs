@@ -10,7 +10,7 @@ use world_model::graph::{At, RejectReason, SceneGraph, translation};
 use world_model::predicates::{Fact, PredicateConfig, PredicateKind as P, evaluate, fork_report};
 use world_model::scenes;
 use world_model::types::{
-    AttrValue, ChangeEvent, EdgeSpec, NodeSpec, NodeType, Pose, Proposal, Stamp,
+    AttrValue, ChangeEvent, Edge, NodeSpec, NodeType, Stamp, StructuralChange, Transform,
 };
 
 fn loki() -> RobotModel {
@@ -342,10 +342,10 @@ fn ball_spec(name: &str, parent: &str) -> NodeSpec {
         name,
         NodeType::Ball,
         parent,
-        Pose::from_translation(1.0, 0.0, 0.5),
+        Transform::from_translation(1.0, 0.0, 0.5),
     )
 }
-fn reason(g: &mut SceneGraph, p: Proposal) -> RejectReason {
+fn reason(g: &mut SceneGraph, p: StructuralChange) -> RejectReason {
     g.propose(p, S).unwrap_err().reason
 }
 
@@ -354,18 +354,14 @@ fn integrity_unique_names() {
     let mut g = scenes::touch_the_ball(&loki(), S).unwrap();
     let r = reason(
         &mut g,
-        Proposal::AddNode {
-            spec: Box::new(ball_spec("ball", "world")),
-        },
+        StructuralChange::AddNode(Box::new(ball_spec("ball", "world"))),
     );
     assert_eq!(r, RejectReason::DuplicateName("ball".into()));
     assert!(r.to_string().contains("already used"));
     // A robot link name is taken too.
     let r = reason(
         &mut g,
-        Proposal::AddNode {
-            spec: Box::new(ball_spec("left_hand", "world")),
-        },
+        StructuralChange::AddNode(Box::new(ball_spec("left_hand", "world"))),
     );
     assert_eq!(r, RejectReason::DuplicateName("left_hand".into()));
     // Loading a second robot with the same link names is rejected, atomically.
@@ -385,17 +381,15 @@ fn integrity_parent_exists() {
     let mut g = SceneGraph::new();
     let r = reason(
         &mut g,
-        Proposal::AddNode {
-            spec: Box::new(ball_spec("ball", "table")),
-        },
+        StructuralChange::AddNode(Box::new(ball_spec("ball", "table"))),
     );
     assert_eq!(r, RejectReason::UnknownParent("table".into()));
     let r = reason(
         &mut g,
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "nothing".into(),
             new_parent: "world".into(),
-            pose: Pose::default(),
+            pose: Transform::default(),
         },
     );
     assert_eq!(r, RejectReason::UnknownNode("nothing".into()));
@@ -405,30 +399,26 @@ fn integrity_parent_exists() {
 fn integrity_no_cycles() {
     let mut g = SceneGraph::new();
     g.propose(
-        Proposal::AddNode {
-            spec: Box::new(NodeSpec::free(
-                "table",
-                NodeType::Object,
-                "world",
-                Pose::default(),
-            )),
-        },
+        StructuralChange::AddNode(Box::new(NodeSpec::free(
+            "table",
+            NodeType::Object,
+            "world",
+            Transform::default(),
+        ))),
         S,
     )
     .unwrap();
     g.propose(
-        Proposal::AddNode {
-            spec: Box::new(ball_spec("ball", "table")),
-        },
+        StructuralChange::AddNode(Box::new(ball_spec("ball", "table"))),
         S,
     )
     .unwrap();
     let r = reason(
         &mut g,
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "table".into(),
             new_parent: "ball".into(),
-            pose: Pose::default(),
+            pose: Transform::default(),
         },
     );
     assert_eq!(
@@ -440,19 +430,19 @@ fn integrity_no_cycles() {
     );
     let r = reason(
         &mut g,
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "table".into(),
             new_parent: "table".into(),
-            pose: Pose::default(),
+            pose: Transform::default(),
         },
     );
     assert!(matches!(r, RejectReason::Cycle { .. }));
     // A legal reparent keeps transforms consistent.
     g.propose(
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "ball".into(),
             new_parent: "world".into(),
-            pose: Pose::from_translation(0.0, 1.0, 0.0),
+            pose: Transform::from_translation(0.0, 1.0, 0.0),
         },
         S,
     )
@@ -471,12 +461,7 @@ fn integrity_types_known() {
     let mut g = SceneGraph::new();
     let mut spec = ball_spec("unicorn", "world");
     spec.node_type = "unicorn".into();
-    let r = reason(
-        &mut g,
-        Proposal::AddNode {
-            spec: Box::new(spec),
-        },
-    );
+    let r = reason(&mut g, StructuralChange::AddNode(Box::new(spec)));
     assert!(
         matches!(&r, RejectReason::UnknownType(t, known) if t == "unicorn" && known.contains("ball")),
         "{r}"
@@ -485,12 +470,7 @@ fn integrity_types_known() {
     spec.node_type = "world".into();
     assert!(
         matches!(
-            reason(
-                &mut g,
-                Proposal::AddNode {
-                    spec: Box::new(spec)
-                }
-            ),
+            reason(&mut g, StructuralChange::AddNode(Box::new(spec))),
             RejectReason::UnknownType(..)
         ),
         "world is unique"
@@ -503,7 +483,7 @@ fn integrity_removals_and_geometry() {
     assert_eq!(
         reason(
             &mut g,
-            Proposal::RemoveNode {
+            StructuralChange::RemoveNode {
                 name: "world".into()
             }
         ),
@@ -512,7 +492,7 @@ fn integrity_removals_and_geometry() {
     assert!(matches!(
         reason(
             &mut g,
-            Proposal::RemoveNode {
+            StructuralChange::RemoveNode {
                 name: "left_hand".into()
             }
         ),
@@ -521,36 +501,29 @@ fn integrity_removals_and_geometry() {
     assert!(matches!(
         reason(
             &mut g,
-            Proposal::RemoveNode {
+            StructuralChange::RemoveNode {
                 name: "loki".into()
             }
         ),
         RejectReason::HasChildren(..)
     ));
     let mut bad = ball_spec("ghost", "world");
-    bad.edge = EdgeSpec::Free {
-        pose: Pose::from_translation(f64::NAN, 0.0, 0.0),
+    bad.edge = Edge::Free {
+        pose: Transform::from_translation(f64::NAN, 0.0, 0.0),
     };
     assert!(matches!(
-        reason(
-            &mut g,
-            Proposal::AddNode {
-                spec: Box::new(bad)
-            }
-        ),
+        reason(&mut g, StructuralChange::AddNode(Box::new(bad))),
         RejectReason::InvalidGeometry(_)
     ));
     assert!(matches!(
         reason(
             &mut g,
-            Proposal::AddNode {
-                spec: Box::new(ball_spec("two words", "world"))
-            }
+            StructuralChange::AddNode(Box::new(ball_spec("two words", "world")))
         ),
         RejectReason::InvalidName(_)
     ));
     g.propose(
-        Proposal::RemoveNode {
+        StructuralChange::RemoveNode {
             name: "ball".into(),
         },
         S,
@@ -577,23 +550,21 @@ fn snapshot_plus_log_recovers_the_graph() {
     g.set_attr("loki", "fallen", AttrValue::Bool(false), Stamp(12))
         .unwrap();
     g.propose(
-        Proposal::AddNode {
-            spec: Box::new(ball_spec("ball_2", "world")),
-        },
+        StructuralChange::AddNode(Box::new(ball_spec("ball_2", "world"))),
         Stamp(13),
     )
     .unwrap();
     g.propose(
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "ball_2".into(),
             new_parent: "left_hand".into(),
-            pose: Pose::default(),
+            pose: Transform::default(),
         },
         Stamp(14),
     )
     .unwrap();
     g.propose(
-        Proposal::RemoveNode {
+        StructuralChange::RemoveNode {
             name: "player".into(),
         },
         Stamp(15),
@@ -601,9 +572,7 @@ fn snapshot_plus_log_recovers_the_graph() {
     .unwrap();
     assert!(
         g.propose(
-            Proposal::AddNode {
-                spec: Box::new(ball_spec("ball", "nowhere"))
-            },
+            StructuralChange::AddNode(Box::new(ball_spec("ball", "nowhere"))),
             Stamp(16)
         )
         .is_err()
@@ -633,7 +602,7 @@ fn snapshot_plus_log_recovers_the_graph() {
     // Replaying a log event that no longer fits is an error, not a panic.
     assert!(matches!(
         r.apply(&ChangeEvent::NodeRemoved {
-            stamp: S,
+            stamp_ns: S.0,
             name: "player".into()
         }),
         Err(DrError::BadEvent(_))
@@ -654,7 +623,8 @@ fn corrupt_snapshots_give_clear_errors() {
     );
     assert!(msg("").contains("not a valid snapshot"));
     assert!(msg(&good.replace("robocog-dr-snapshot", "something-else")).contains("format"));
-    assert!(msg(&good.replace("\"version\": 1", "\"version\": 99")).contains("version 99"));
+    assert!(msg(&good.replace("\"version\": 2", "\"version\": 99")).contains("version 99"));
+    assert!(msg(&good.replace("\"version\": 2", "\"version\": 1")).contains("older robocog"));
     assert!(
         msg(&good.replace("\"parent\": \"field\"", "\"parent\": \"pitch\""))
             .contains("parent `pitch` does not exist")

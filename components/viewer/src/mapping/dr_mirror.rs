@@ -10,9 +10,7 @@ impl Mapper {
     }
 
     pub(super) fn dr_snapshot(&mut self, m: &dr::SnapshotData, out: &mut Vec<Logged>) {
-        let restored = Snapshot::try_from(&m.snapshot)
-            .map_err(|e| e.to_string())
-            .and_then(|s| SceneGraph::restore(&s).map_err(|e| e.to_string()));
+        let restored = SceneGraph::restore(&m.snapshot).map_err(|e| e.to_string());
         match restored {
             Ok(g) => {
                 let nodes = g.len();
@@ -56,9 +54,7 @@ impl Mapper {
             return;
         }
         self.dr.last_seq = m.seq;
-        let applied = ChangeEvent::try_from(&m.event)
-            .map_err(|e| e.to_string())
-            .and_then(|ev| g.apply(&ev).map_err(|e| e.to_string()));
+        let applied = g.apply(&m.event).map_err(|e| e.to_string());
         match applied {
             Ok(()) => self.dr.dirty = true,
             Err(e) => {

@@ -16,7 +16,7 @@ use robot_model::{RobotModel, Shape};
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use world_model::field::FieldModel;
 use world_model::graph::{At, SceneGraph};
-use world_model::types::{ChangeEvent, Snapshot};
+use world_model::types::TransformIso;
 
 mod coach_field;
 mod dr_mirror;

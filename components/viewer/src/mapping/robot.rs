@@ -51,7 +51,7 @@ impl Mapper {
                     Shape::Mesh { .. } => None,
                 };
                 if let Some(data) = shape {
-                    out.push(Logged::fixed(path.clone(), tr(&c.origin)));
+                    out.push(Logged::fixed(path.clone(), tr(&c.origin.to_iso())));
                     out.push(Logged {
                         path,
                         is_static: true,

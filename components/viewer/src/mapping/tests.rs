@@ -291,7 +291,7 @@ fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
     assert!(mp.wants_dr_snapshot());
     let mut g = world_model::scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
     let snap = dr::SnapshotData {
-        snapshot: (&g.snapshot()).into(),
+        snapshot: g.snapshot(),
         last_seq: 10,
         ..Default::default()
     };
@@ -310,7 +310,7 @@ fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
     let ev = g.take_log().pop().unwrap();
     let change = |seq| dr::DrChange {
         seq,
-        event: (&ev).into(),
+        event: ev.clone(),
         ..Default::default()
     };
     map(&mut mp, "dr/changes", &change(11), 3 * S);

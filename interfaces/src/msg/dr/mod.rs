@@ -14,9 +14,10 @@
 //!   from `header.stamp_ns` (0 = now on the service's clock).
 //! - Everything is typed, down to a whole node description ([`NodeSpec`]: its edge with the
 //!   joint's limits, attributes, camera intrinsics, collision shapes), a snapshot ([`Snapshot`])
-//!   and a change event ([`ChangeEvent`]). These mirror the `world_model` library's serde types
-//!   one to one; the conversions both ways are in one place, `world_model::bus`, so a snapshot
-//!   taken, sent and restored loses nothing.
+//!   and a change event ([`ChangeEvent`]). They are the `world_model` library's own types too
+//!   (one definition: the library builds, stores and restores these), so a snapshot taken, sent
+//!   and restored loses nothing. Their JSON form (the DR's state folder, `robocog topic echo`) is
+//!   tagged and snake_case; their CDR form is the ROS 2 one of [`wire`].
 //! - A structural proposal that breaks an integrity rule is a normal reply (`accepted = false`
 //!   with the reason), not a transport error. Unknown names come back as a `NotFound`
 //!   [`crate::ServiceError`], malformed requests as `BadRequest`.
@@ -51,12 +52,36 @@ impl Transform {
             ..Self::default()
         }
     }
+
+    /// A planar pose: position on the z = 0 plane (m) and heading about z (rad).
+    pub fn planar(x: f64, y: f64, theta: f64) -> Self {
+        let (s, c) = (theta / 2.0).sin_cos();
+        Self {
+            translation_m: [x, y, 0.0],
+            rotation_xyzw: [0.0, 0.0, s, c],
+        }
+    }
+
+    /// Whether every number is finite and the quaternion is not zero (it is normalised where it
+    /// is used).
+    pub fn is_valid(&self) -> bool {
+        self.translation_m
+            .iter()
+            .chain(&self.rotation_xyzw)
+            .all(|v| v.is_finite())
+            && self.rotation_xyzw.iter().map(|v| v * v).sum::<f64>() > 1e-12
+    }
 }
 
 /// A typed attribute value. The attribute's key names the unit (`radius_m`). On the wire, a
 /// message with the variant's `kind` and a field per variant ([`wire::AttrValueWire`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(remote = "Self")]
+#[serde(
+    remote = "Self",
+    tag = "type",
+    content = "value",
+    rename_all = "snake_case"
+)]
 pub enum AttrValue {
     Bool(bool),
     Int(i64),
@@ -107,6 +132,7 @@ pub struct JointUpdate {
 
 /// One attribute inside a [`NodeSpec`] (the node is the one the spec describes).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct KeyValue {
     pub key: String,
     pub value: AttrValue,
@@ -137,18 +163,82 @@ impl JointKind {
 
 /// Limits of a joint: position (rad or m), velocity (rad/s or m/s), effort (N m or N). A limit
 /// that does not exist is infinite (`lower` -inf, the others +inf; a continuous joint's position),
-/// never NaN. (JSON has no infinity: `robocog topic echo` shows such a limit as `null`.)
+/// never NaN. JSON has no infinity: there such a limit is `null` (and `null` reads back as it).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct JointLimits {
+    #[serde(with = "no_limit::lower")]
     pub lower: f64,
+    #[serde(with = "no_limit::upper")]
     pub upper: f64,
+    #[serde(with = "no_limit::upper")]
     pub velocity: f64,
+    #[serde(with = "no_limit::upper")]
     pub effort: f64,
+}
+
+impl JointLimits {
+    /// Whether position `q` is inside `[lower, upper]`.
+    pub fn contains(&self, q: f64) -> bool {
+        q >= self.lower && q <= self.upper
+    }
+    /// Position `q` clamped into `[lower, upper]`.
+    pub fn clamp(&self, q: f64) -> f64 {
+        q.clamp(self.lower, self.upper)
+    }
+}
+
+/// A missing limit (an infinity) as `null` in human-readable forms (JSON); CDR carries the
+/// number as it is.
+mod no_limit {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() && v.is_infinite() {
+            s.serialize_none()
+        } else {
+            s.serialize_f64(*v)
+        }
+    }
+
+    fn deserialize<'de, D: Deserializer<'de>>(d: D, none: f64) -> Result<f64, D::Error> {
+        if d.is_human_readable() {
+            Ok(Option::<f64>::deserialize(d)?.unwrap_or(none))
+        } else {
+            f64::deserialize(d)
+        }
+    }
+
+    /// A lower limit: `null` is -inf.
+    pub mod lower {
+        use serde::{Deserializer, Serializer};
+        pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+            super::serialize(v, s)
+        }
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+            super::deserialize(d, f64::NEG_INFINITY)
+        }
+    }
+
+    /// An upper limit (position, velocity, effort): `null` is +inf.
+    pub mod upper {
+        use serde::{Deserializer, Serializer};
+        pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+            super::serialize(v, s)
+        }
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+            super::deserialize(d, f64::INFINITY)
+        }
+    }
 }
 
 /// How a node hangs from its parent. On the wire: [`wire::EdgeWire`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(remote = "Self")]
+#[serde(
+    remote = "Self",
+    tag = "edge",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
 pub enum Edge {
     /// A constant transform.
     Fixed {
@@ -238,7 +328,7 @@ impl CameraIntrinsics {
 
 /// The camera of a node, for `camera` nodes. On the wire: [`wire::CameraWire`].
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-#[serde(remote = "Self")]
+#[serde(remote = "Self", rename_all = "snake_case")]
 pub enum Camera {
     /// Not a camera.
     #[default]
@@ -247,9 +337,30 @@ pub enum Camera {
     Pinhole(CameraIntrinsics),
 }
 
+impl Camera {
+    /// The intrinsics, for a pinhole camera.
+    pub fn intrinsics(&self) -> Option<&CameraIntrinsics> {
+        match self {
+            Camera::None => None,
+            Camera::Pinhole(c) => Some(c),
+        }
+    }
+}
+
+impl From<Option<CameraIntrinsics>> for Camera {
+    fn from(c: Option<CameraIntrinsics>) -> Self {
+        c.map_or(Camera::None, Camera::Pinhole)
+    }
+}
+
 /// Collision geometry, centred on its origin (m). On the wire: [`wire::ShapeWire`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(remote = "Self")]
+#[serde(
+    remote = "Self",
+    tag = "type",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
 pub enum Shape {
     /// A box; full side lengths along x, y, z.
     Box {
@@ -276,6 +387,7 @@ pub enum Shape {
 
 /// One collision element of a node: a shape placed by `origin` in the node frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CollisionShape {
     pub origin: Transform,
     pub shape: Shape,
@@ -284,6 +396,7 @@ pub struct CollisionShape {
 /// A complete description of one node: what `dr/propose` adds, what a snapshot and a
 /// `NodeAdded` change hold, what `dr/get_node` reports in full.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct NodeSpec {
     /// Unique name (also the frame name).
     pub name: String,
@@ -299,6 +412,39 @@ pub struct NodeSpec {
     pub camera: Camera,
     /// Collision geometry in the node frame, for `link` nodes.
     pub collision: Vec<CollisionShape>,
+}
+
+impl NodeSpec {
+    /// A node with a free pose `parent_T_node` under `parent`, no attributes.
+    pub fn free(name: &str, node_type: impl AsRef<str>, parent: &str, pose: Transform) -> Self {
+        Self {
+            name: name.into(),
+            node_type: node_type.as_ref().into(),
+            parent: parent.into(),
+            edge: Edge::Free { pose },
+            ..Self::default()
+        }
+    }
+
+    /// Builder: sets an attribute (replacing one of the same key).
+    pub fn with_attr(mut self, key: &str, value: AttrValue) -> Self {
+        match self.attributes.iter_mut().find(|a| a.key == key) {
+            Some(a) => a.value = value,
+            None => self.attributes.push(KeyValue {
+                key: key.into(),
+                value,
+            }),
+        }
+        self
+    }
+
+    /// The value of an attribute, if the node has it.
+    pub fn attribute(&self, key: &str) -> Option<&AttrValue> {
+        self.attributes
+            .iter()
+            .find(|a| a.key == key)
+            .map(|a| &a.value)
+    }
 }
 
 /// `dr/get_node` request: one node by name.
@@ -401,6 +547,11 @@ impl Default for StructuralChange {
 }
 
 impl StructuralChange {
+    /// Adding a node.
+    pub fn add(spec: NodeSpec) -> Self {
+        StructuralChange::AddNode(Box::new(spec))
+    }
+
     /// The snake_case name of the change: `add_node`, `remove_node` or `reparent`.
     pub fn kind(&self) -> &'static str {
         match self {
@@ -535,6 +686,7 @@ pub struct SnapshotRequest {
 
 /// A body part declared for predicates: a chain from a shoulder-like frame to a tip.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BodyPart {
     /// Name (`left_arm`).
     pub name: String,
@@ -550,6 +702,7 @@ pub struct BodyPart {
 
 /// The state of the graph, without history.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Snapshot {
     /// Time of the newest change included (ns, DR clock).
     pub stamp_ns: u64,
@@ -572,7 +725,12 @@ pub struct SnapshotData {
 /// One change of the live graph. Times are ns on the DR clock. On the wire:
 /// [`wire::ChangeEventWire`].
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-#[serde(remote = "Self")]
+#[serde(
+    remote = "Self",
+    tag = "event",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
 pub enum ChangeEvent {
     /// A node was added.
     NodeAdded { stamp_ns: u64, spec: Box<NodeSpec> },
@@ -624,6 +782,20 @@ impl ChangeEvent {
             ChangeEvent::AttributeSet { .. } => "attribute_set",
             ChangeEvent::BodyPartDeclared { .. } => "body_part_declared",
             ChangeEvent::Restored => "restored",
+        }
+    }
+
+    /// When it happened (ns on the DR's clock); 0 for `restored`.
+    pub fn stamp_ns(&self) -> u64 {
+        match self {
+            ChangeEvent::NodeAdded { stamp_ns, .. }
+            | ChangeEvent::NodeRemoved { stamp_ns, .. }
+            | ChangeEvent::Reparented { stamp_ns, .. }
+            | ChangeEvent::JointSet { stamp_ns, .. }
+            | ChangeEvent::PoseSet { stamp_ns, .. }
+            | ChangeEvent::AttributeSet { stamp_ns, .. }
+            | ChangeEvent::BodyPartDeclared { stamp_ns, .. } => *stamp_ns,
+            ChangeEvent::Restored => 0,
         }
     }
 

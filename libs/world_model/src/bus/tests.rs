@@ -1,6 +1,9 @@
 use super::*;
-use crate::types::{NodeType, attr};
-use crate::{At, SceneGraph, scenes};
+use crate::types::{
+    BodyPart, CameraIntrinsics, CollisionShape, JointKind, JointLimits, NodeType, StructuralChange,
+    Transform, TransformIso, attr,
+};
+use crate::{At, SceneGraph, Stamp, scenes};
 use interfaces::codec;
 use interfaces::msg::Message;
 
@@ -8,6 +11,11 @@ use interfaces::msg::Message;
 fn wire<T: Message>(msg: &T) -> T {
     let bytes = codec::encode(msg, T::TYPE_NAME).unwrap();
     codec::decode(&bytes, T::TYPE_NAME).unwrap()
+}
+
+/// Through JSON as the state folder keeps it.
+fn json<T: serde::Serialize + serde::de::DeserializeOwned>(v: &T) -> T {
+    serde_json::from_str(&serde_json::to_string(v).unwrap()).unwrap()
 }
 
 fn loki() -> crate::RobotModel {
@@ -22,16 +30,19 @@ fn loki() -> crate::RobotModel {
 /// an origin from Euler angles, whose quaternion is not exactly unit) and a continuous joint
 /// (infinite limits).
 fn rich_spec() -> NodeSpec {
+    let iso = |t: [f64; 3], r: [f64; 3]| {
+        Transform::from_iso(&nalgebra::Isometry3::new(t.into(), r.into()))
+    };
     let mut spec = NodeSpec {
         name: "gripper".into(),
         node_type: "link".into(),
         parent: "wrist".into(),
-        edge: EdgeSpec::Joint {
+        edge: Edge::Joint {
             joint: "wrist_roll".into(),
             kind: JointKind::Continuous,
-            origin: Pose::planar(0.1, -0.2, 0.3),
+            origin: Transform::planar(0.1, -0.2, 0.3),
             axis: [0.0, 0.0, 1.0],
-            limits: LimitsSpec {
+            limits: JointLimits {
                 lower: f64::NEG_INFINITY,
                 upper: f64::INFINITY,
                 velocity: 2.5,
@@ -39,8 +50,8 @@ fn rich_spec() -> NodeSpec {
             },
             value: -0.75,
         },
-        attrs: BTreeMap::new(),
-        camera: Some(CameraIntrinsics {
+        attributes: Vec::new(),
+        camera: Camera::Pinhole(CameraIntrinsics {
             name: "wrist_cam".into(),
             frame: "gripper".into(),
             width: 640,
@@ -54,34 +65,31 @@ fn rich_spec() -> NodeSpec {
         }),
         collision: vec![
             CollisionShape {
-                origin: Isometry3::new(
-                    nalgebra::Vector3::new(0.01, 0.02, 0.03),
-                    nalgebra::Vector3::new(0.3, -0.2, 0.1),
-                ),
+                origin: iso([0.01, 0.02, 0.03], [0.3, -0.2, 0.1]),
                 shape: Shape::Box {
                     size_m: [0.1, 0.2, 0.3],
                 },
             },
             CollisionShape {
-                origin: Isometry3::identity(),
+                origin: Transform::default(),
                 shape: Shape::Cylinder {
                     radius_m: 0.05,
                     length_m: 0.2,
                 },
             },
             CollisionShape {
-                origin: Isometry3::translation(0.0, 0.0, 0.1),
+                origin: Transform::from_translation(0.0, 0.0, 0.1),
                 shape: Shape::Capsule {
                     radius_m: 0.04,
                     length_m: 0.12,
                 },
             },
             CollisionShape {
-                origin: Isometry3::identity(),
+                origin: Transform::default(),
                 shape: Shape::Sphere { radius_m: 0.03 },
             },
             CollisionShape {
-                origin: Isometry3::identity(),
+                origin: Transform::default(),
                 shape: Shape::Mesh {
                     filename: "package://loki/gripper.stl".into(),
                 },
@@ -89,39 +97,70 @@ fn rich_spec() -> NodeSpec {
         ],
     };
     for (k, v) in [
-        (attr::EFFECTOR, AttrValue::Bool(true)),
-        (attr::TEAM, AttrValue::Int(-3)),
-        (attr::RADIUS_M, AttrValue::Float(0.055)),
         (attr::COLOR, AttrValue::Text("yellow".into())),
+        (attr::EFFECTOR, AttrValue::Bool(true)),
+        (attr::RADIUS_M, AttrValue::Float(0.055)),
+        (attr::TEAM, AttrValue::Int(-3)),
         ("velocity_mps", AttrValue::Vec3([0.1, -0.2, 1e-9])),
     ] {
-        spec.attrs.insert(k.into(), v);
+        spec = spec.with_attr(k, v);
     }
     spec
 }
 
 #[test]
-fn a_node_spec_survives_the_bus() {
+fn a_node_spec_survives_the_bus_and_the_state_folder() {
     for spec in [
         rich_spec(),
-        NodeSpec::free("ball", NodeType::Ball, "world", Pose::planar(1.0, 2.0, 0.5))
-            .with_attr(attr::RADIUS_M, AttrValue::Float(0.11)),
+        NodeSpec::free(
+            "ball",
+            NodeType::Ball,
+            "world",
+            Transform::planar(1.0, 2.0, 0.5),
+        )
+        .with_attr(attr::RADIUS_M, AttrValue::Float(0.11)),
         NodeSpec {
-            edge: EdgeSpec::Fixed {
-                origin: Pose::from_translation(2.0, 0.0, 0.0),
+            edge: Edge::Fixed {
+                origin: Transform::from_translation(2.0, 0.0, 0.0),
             },
-            ..NodeSpec::free("marker", NodeType::Landmark, "world", Pose::default())
+            ..NodeSpec::free("marker", NodeType::Landmark, "world", Transform::default())
         },
     ] {
         let msg = m::NodeInfo {
-            spec: (&spec).into(),
+            spec: spec.clone(),
             ..Default::default()
         };
-        let back = NodeSpec::try_from(&wire(&msg).spec).unwrap();
-        assert_eq!(back, spec);
+        assert_eq!(wire(&msg).spec, spec);
+        assert_eq!(json(&spec), spec);
     }
-    // The attributes go sorted by key.
-    let keys: Vec<String> = m::NodeSpec::from(&rich_spec())
+    // A missing limit is `null` in JSON, the tagged forms are snake_case.
+    let text = serde_json::to_string(&rich_spec()).unwrap();
+    for part in [
+        r#""limits":{"lower":null,"upper":null,"velocity":2.5,"effort":null}"#,
+        r#""edge":{"edge":"joint","joint":"wrist_roll","kind":"continuous""#,
+        r#"{"key":"team","value":{"type":"int","value":-3}}"#,
+        r#""shape":{"type":"sphere","radius_m":0.03}"#,
+        r#""camera":{"pinhole":{"name":"wrist_cam""#,
+    ] {
+        assert!(text.contains(part), "{part} not in {text}");
+    }
+    // What the graph describes: the attributes sorted by key, each once.
+    let mut g = SceneGraph::new();
+    g.propose(
+        StructuralChange::add(NodeSpec {
+            parent: "world".into(),
+            edge: Edge::Free {
+                pose: Transform::default(),
+            },
+            node_type: "object".into(),
+            ..rich_spec()
+        }),
+        Stamp(1),
+    )
+    .unwrap();
+    let keys: Vec<String> = g
+        .node_spec("gripper")
+        .unwrap()
         .attributes
         .into_iter()
         .map(|a| a.key)
@@ -134,19 +173,19 @@ fn a_node_spec_survives_the_bus() {
 #[test]
 fn a_proposal_survives_the_bus() {
     for p in [
-        Proposal::add(rich_spec()),
-        Proposal::RemoveNode { name: "cup".into() },
-        Proposal::Reparent {
+        StructuralChange::add(rich_spec()),
+        StructuralChange::RemoveNode { name: "cup".into() },
+        StructuralChange::Reparent {
             name: "ball".into(),
             new_parent: "left_hand_center".into(),
-            pose: Pose::planar(0.0, 0.1, -0.2),
+            pose: Transform::planar(0.0, 0.1, -0.2),
         },
     ] {
         let msg = m::ProposeRequest {
-            change: (&p).into(),
+            change: p.clone(),
             ..Default::default()
         };
-        assert_eq!(Proposal::try_from(&wire(&msg).change).unwrap(), p);
+        assert_eq!(wire(&msg).change, p);
     }
 }
 
@@ -154,20 +193,24 @@ fn a_proposal_survives_the_bus() {
 fn every_change_event_survives_the_bus() {
     let mut g = scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
     g.enable_log();
-    g.propose(Proposal::add(rich_spec_under("torso")), Stamp(2))
+    g.propose(StructuralChange::add(rich_spec_under("torso")), Stamp(2))
         .unwrap();
     g.propose(
-        Proposal::Reparent {
+        StructuralChange::Reparent {
             name: "ball".into(),
             new_parent: "left_hand_center".into(),
-            pose: Pose::from_translation(0.0, 0.0, 0.05),
+            pose: Transform::from_translation(0.0, 0.0, 0.05),
         },
         Stamp(3),
     )
     .unwrap();
     g.set_joint("left_elbow", -1.0, Stamp(4)).unwrap();
-    g.set_pose("player", &Pose::planar(2.0, 0.5, 3.0).to_iso(), Stamp(5))
-        .unwrap();
+    g.set_pose(
+        "player",
+        &Transform::planar(2.0, 0.5, 3.0).to_iso(),
+        Stamp(5),
+    )
+    .unwrap();
     g.set_attr(
         "ball",
         "velocity_mps",
@@ -176,7 +219,7 @@ fn every_change_event_survives_the_bus() {
     )
     .unwrap();
     g.declare_body_part(
-        BodyPartSpec {
+        BodyPart {
             name: "gripper_arm".into(),
             robot: "loki".into(),
             base_frame: "torso".into(),
@@ -187,22 +230,22 @@ fn every_change_event_survives_the_bus() {
     )
     .unwrap();
     g.propose(
-        Proposal::add(NodeSpec::free(
+        StructuralChange::add(NodeSpec::free(
             "cup",
             NodeType::Object,
             "world",
-            Pose::default(),
+            Transform::default(),
         )),
         Stamp(8),
     )
     .unwrap();
-    g.propose(Proposal::RemoveNode { name: "cup".into() }, Stamp(9))
-        .unwrap();
+    g.propose(
+        StructuralChange::RemoveNode { name: "cup".into() },
+        Stamp(9),
+    )
+    .unwrap();
     let events = g.take_log();
-    let kinds: Vec<&str> = events
-        .iter()
-        .map(|e| m::ChangeEvent::from(e).kind())
-        .collect();
+    let kinds: Vec<&str> = events.iter().map(|e| e.kind()).collect();
     assert_eq!(
         kinds,
         [
@@ -219,16 +262,24 @@ fn every_change_event_survives_the_bus() {
     for (seq, e) in events.iter().enumerate() {
         let msg = m::DrChange {
             seq: seq as u64,
-            event: e.into(),
+            event: e.clone(),
             ..Default::default()
         };
-        let got = wire(&msg);
-        assert_eq!(got.event.node(), msg.event.node());
-        assert_eq!(ChangeEvent::try_from(&got.event).unwrap(), *e);
+        assert_eq!(wire(&msg).event, *e);
+        assert_eq!(json(e), *e);
     }
     assert_eq!(
-        ChangeEvent::try_from(&m::ChangeEvent::Restored),
-        Err(FromBusError::Restored)
+        serde_json::to_string(&events[2]).unwrap(),
+        r#"{"event":"joint_set","stamp_ns":4,"joint":"left_elbow","value":-1.0}"#
+    );
+    let typo = r#"{"event":"joint_set","stamp_ns":5,"joint":"a","value":1.0,"vaule":2}"#;
+    assert!(
+        serde_json::from_str::<ChangeEvent>(typo).is_err(),
+        "unknown fields rejected"
+    );
+    assert_eq!(
+        check_event(&ChangeEvent::Restored),
+        Err(InvalidSpec::Restored)
     );
 }
 
@@ -242,31 +293,32 @@ fn rich_spec_under(parent: &str) -> NodeSpec {
 #[test]
 fn a_snapshot_survives_the_bus_and_restores_the_same_graph() {
     let mut g = scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
-    g.propose(Proposal::add(rich_spec_under("torso")), Stamp(2))
+    g.propose(StructuralChange::add(rich_spec_under("torso")), Stamp(2))
         .unwrap();
     g.set_joint("left_elbow", -1.2, Stamp(3)).unwrap();
-    g.set_pose("ball", &Pose::planar(0.5, 0.1, 0.2).to_iso(), Stamp(4))
+    g.set_pose("ball", &Transform::planar(0.5, 0.1, 0.2).to_iso(), Stamp(4))
         .unwrap();
     g.set_attr("ball", attr::COLOR, AttrValue::Text("red".into()), Stamp(5))
         .unwrap();
     let snap = g.snapshot();
-    assert!(snap.nodes.iter().any(|n| n.camera.is_some()));
+    assert!(snap.nodes.iter().any(|n| n.camera.intrinsics().is_some()));
     assert!(snap.nodes.iter().any(|n| !n.collision.is_empty()));
     assert!(!snap.body_parts.is_empty());
 
     let msg = m::SnapshotData {
-        snapshot: (&snap).into(),
+        snapshot: snap.clone(),
         last_seq: 42,
         ..Default::default()
     };
-    let got = wire(&msg);
-    assert_eq!(got, msg);
-    let back = Snapshot::try_from(&got.snapshot).unwrap();
+    let back = wire(&msg).snapshot;
     assert_eq!(back, snap);
-    // Restored, the graph is the same one: same snapshot, same transforms and values.
+    // Restored, the graph is the same one: same snapshot, same transforms and values; so is
+    // the graph restored from its JSON.
     let r = SceneGraph::restore(&back).unwrap();
     assert_eq!(r.snapshot(), snap);
     assert_eq!(r.snapshot_json(), g.snapshot_json());
+    let from_json = SceneGraph::restore_json(&g.snapshot_json()).unwrap();
+    assert_eq!(from_json.snapshot(), snap);
     let (a, b) = (
         g.transform("world", "gripper", At::Latest).unwrap(),
         r.transform("world", "gripper", At::Latest).unwrap(),
@@ -281,23 +333,25 @@ fn a_snapshot_survives_the_bus_and_restores_the_same_graph() {
     .unwrap();
     let coach = scenes::coach_game(&field, Stamp(9)).unwrap().snapshot();
     let msg = m::SnapshotData {
-        snapshot: (&coach).into(),
+        snapshot: coach.clone(),
         ..Default::default()
     };
-    assert_eq!(Snapshot::try_from(&wire(&msg).snapshot).unwrap(), coach);
+    assert_eq!(wire(&msg).snapshot, coach);
+    assert_eq!(json(&coach), coach);
 }
 
 #[test]
-fn what_the_library_cannot_hold_is_a_clear_error() {
-    let mut spec = m::NodeSpec::from(&rich_spec());
-    spec.attributes.push(m::KeyValue {
+fn what_the_graph_cannot_hold_is_a_clear_error() {
+    let spec = rich_spec();
+    let mut twice = spec.clone();
+    twice.attributes.push(m::KeyValue {
         key: attr::COLOR.into(),
-        value: m::AttrValue::Text("blue".into()),
+        value: AttrValue::Text("blue".into()),
     });
-    let e = NodeSpec::try_from(&spec).unwrap_err();
+    let e = check_node(&twice).unwrap_err();
     assert_eq!(
         e,
-        FromBusError::DuplicateAttribute {
+        InvalidSpec::DuplicateAttribute {
             node: "gripper".into(),
             key: "color".into()
         }
@@ -306,48 +360,58 @@ fn what_the_library_cannot_hold_is_a_clear_error() {
         e.to_string(),
         "node `gripper`: attribute `color` is given twice"
     );
+    // The graph refuses it too, with its own reason code.
+    let mut g = scenes::touch_the_ball(&loki(), Stamp(1)).unwrap();
+    let r = g
+        .propose(
+            StructuralChange::add(NodeSpec {
+                parent: "torso".into(),
+                ..twice
+            }),
+            Stamp(2),
+        )
+        .unwrap_err();
+    assert_eq!(reason_code(&r.reason), "invalid_spec");
+    assert!(g.node_spec("gripper").is_err(), "nothing half-added");
 
-    let nan_attr = m::NodeSpec {
-        name: "cup".into(),
-        attributes: vec![m::KeyValue {
-            key: attr::RADIUS_M.into(),
-            value: m::AttrValue::Float(f64::NAN),
-        }],
-        ..Default::default()
-    };
-    let e = NodeSpec::try_from(&nan_attr).unwrap_err();
+    let nan_attr = NodeSpec::free("cup", NodeType::Object, "world", Transform::default())
+        .with_attr(attr::RADIUS_M, AttrValue::Float(f64::NAN));
+    let e = check_node(&nan_attr).unwrap_err();
     assert!(e.to_string().contains("`radius_m`"), "{e}");
 
-    let mut nan_limit = m::NodeSpec::from(&rich_spec());
-    if let m::Edge::Joint { limits, .. } = &mut nan_limit.edge {
+    let mut nan_limit = spec.clone();
+    if let Edge::Joint { limits, .. } = &mut nan_limit.edge {
         limits.velocity = f64::NAN;
     }
-    let e = NodeSpec::try_from(&nan_limit).unwrap_err();
+    let e = check_node(&nan_limit).unwrap_err();
     assert!(e.to_string().contains("wrist_roll"), "{e}");
 
-    let mut bad_camera = m::NodeSpec::from(&rich_spec());
-    if let m::Camera::Pinhole(c) = &mut bad_camera.camera {
+    let mut bad_camera = spec.clone();
+    if let Camera::Pinhole(c) = &mut bad_camera.camera {
         c.max_range_m = f64::INFINITY;
     }
-    assert!(NodeSpec::try_from(&bad_camera).is_err());
+    assert!(check_node(&bad_camera).is_err());
 
-    let mut bad_shape = m::NodeSpec::from(&rich_spec());
-    bad_shape.collision[3].shape = m::Shape::Sphere { radius_m: f64::NAN };
-    assert!(NodeSpec::try_from(&bad_shape).is_err());
-    let mut zero_rotation = m::NodeSpec::from(&rich_spec());
+    let mut bad_shape = spec.clone();
+    bad_shape.collision[3].shape = Shape::Sphere { radius_m: f64::NAN };
+    assert!(check_node(&bad_shape).is_err());
+    let mut zero_rotation = spec.clone();
     zero_rotation.collision[0].origin.rotation_xyzw = [0.0; 4];
-    assert!(NodeSpec::try_from(&zero_rotation).is_err());
+    assert!(check_node(&zero_rotation).is_err());
+    assert!(check_change(&StructuralChange::add(zero_rotation)).is_err());
 
-    let nan_event = m::ChangeEvent::AttributeSet {
+    let nan_event = ChangeEvent::AttributeSet {
         stamp_ns: 1,
         node: "ball".into(),
         key: "velocity_mps".into(),
-        value: m::AttrValue::Vec3([0.0, f64::INFINITY, 0.0]),
+        value: AttrValue::Vec3([0.0, f64::INFINITY, 0.0]),
     };
-    assert!(ChangeEvent::try_from(&nan_event).is_err());
-    let snap = m::Snapshot {
+    assert!(check_event(&nan_event).is_err());
+    assert!(g.apply(&nan_event).is_err());
+    let snap = Snapshot {
         nodes: vec![nan_attr],
         ..Default::default()
     };
-    assert!(Snapshot::try_from(&snap).is_err());
+    assert!(check_snapshot(&snap).is_err());
+    assert!(SceneGraph::restore(&snap).is_err());
 }

@@ -17,14 +17,14 @@ use nalgebra::{Isometry3, Point3, Translation3, Unit, Vector3};
 
 use crate::error::{DrError, Result};
 use crate::types::{
-    AttrValue, BodyPartSpec, ChangeEvent, EdgeSpec, LimitsSpec, NodeSpec, NodeType, Pose, Proposal,
-    SNAPSHOT_FORMAT, SNAPSHOT_VERSION, Snapshot, Stamp, attr,
+    AttrValue, BodyPart, Camera, CameraIntrinsics, ChangeEvent, CollisionShape, Edge, JointKind,
+    JointLimits, KeyValue, NodeSpec, NodeType, Snapshot, Stamp, StructuralChange, Transform,
+    TransformIso, attr,
 };
-use robot_model::{
-    CameraIntrinsics, Chain, CollisionShape, JointKind, JointLimits, RobotModel, joint_motion,
-};
+use robot_model::{Chain, RobotModel, joint_motion};
 
 mod snapshot;
+pub use snapshot::{SNAPSHOT_FORMAT, SNAPSHOT_VERSION};
 mod structure;
 
 /// Name of the root node.
@@ -73,7 +73,7 @@ struct Sample {
 
 /// The edge from a node's parent to the node.
 #[derive(Debug, Clone)]
-pub struct Edge {
+pub struct EdgeState {
     /// Kind.
     pub kind: EdgeKind,
     /// Fixed part: for fixed edges the whole transform, for joints the origin, identity for free.
@@ -83,7 +83,7 @@ pub struct Edge {
     history: VecDeque<Sample>,
 }
 
-impl Edge {
+impl EdgeState {
     /// Current `parent_T_node`.
     pub fn current(&self) -> &Isometry3<f64> {
         &self.current
@@ -172,8 +172,8 @@ pub struct Node {
     pub camera: Option<CameraIntrinsics>,
     /// Collision geometry of a link node.
     pub collision: Vec<CollisionShape>,
-    /// Edge from the parent.
-    pub edge: Edge,
+    /// EdgeState from the parent.
+    pub edge: EdgeState,
     depth: u32,
 }
 
@@ -240,6 +240,9 @@ pub enum RejectReason {
     /// A joint name that is already used.
     #[error("joint `{0}` already exists")]
     DuplicateJoint(String),
+    /// A description the graph cannot hold (an attribute given twice, a number not finite).
+    #[error(transparent)]
+    InvalidSpec(#[from] crate::bus::InvalidSpec),
 }
 
 /// A rejected structural proposal and its reason.
@@ -247,7 +250,7 @@ pub enum RejectReason {
 #[error("proposal rejected: {reason}")]
 pub struct Rejection {
     /// The proposal.
-    pub proposal: Box<Proposal>,
+    pub proposal: Box<StructuralChange>,
     /// Why.
     pub reason: RejectReason,
 }
@@ -258,7 +261,7 @@ pub struct SceneGraph {
     nodes: Vec<Option<Node>>,
     names: HashMap<String, NodeId>,
     joints: HashMap<String, NodeId>,
-    body_parts: BTreeMap<String, BodyPartSpec>,
+    body_parts: BTreeMap<String, BodyPart>,
     history_len: usize,
     log: Option<Vec<ChangeEvent>>,
     newest: Stamp,
@@ -297,7 +300,7 @@ impl SceneGraph {
             attrs: BTreeMap::new(),
             camera: None,
             collision: Vec::new(),
-            edge: Edge {
+            edge: EdgeState {
                 kind: EdgeKind::Fixed,
                 origin: Isometry3::identity(),
                 value: 0.0,
@@ -372,7 +375,7 @@ impl SceneGraph {
                     attrs: n.attrs.clone(),
                     camera: n.camera.clone(),
                     collision: n.collision.clone(),
-                    edge: Edge {
+                    edge: EdgeState {
                         kind: n.edge.kind.clone(),
                         origin: n.edge.origin,
                         value: n.edge.value,
@@ -449,11 +452,11 @@ impl SceneGraph {
         Ok(self.node_by_id(id).map_or(0.0, |n| n.edge.value))
     }
     /// Declared body parts.
-    pub fn body_parts(&self) -> impl Iterator<Item = &BodyPartSpec> {
+    pub fn body_parts(&self) -> impl Iterator<Item = &BodyPart> {
         self.body_parts.values()
     }
     /// A declared body part.
-    pub fn body_part(&self, name: &str) -> Option<&BodyPartSpec> {
+    pub fn body_part(&self, name: &str) -> Option<&BodyPart> {
         self.body_parts.get(name)
     }
     /// The newest stamp seen in any change.
@@ -537,7 +540,7 @@ impl SceneGraph {
         let id = self.joint_node(joint)?;
         self.set_joint_id(id, value, stamp)?;
         self.record(|| ChangeEvent::JointSet {
-            stamp,
+            stamp_ns: stamp.0,
             joint: joint.to_string(),
             value,
         });
@@ -573,14 +576,14 @@ impl SceneGraph {
         if !matches!(n.edge.kind, EdgeKind::Free) {
             return Err(DrError::WrongEdgeKind(node.to_string(), "not a free pose"));
         }
-        let p = Pose::from_iso(pose);
+        let p = Transform::from_iso(pose);
         if !p.is_valid() {
             return Err(DrError::BadEvent(format!("pose of `{node}` is not finite")));
         }
         n.edge.push(cap, stamp, 0.0, *pose);
         self.saw(stamp);
         self.record(|| ChangeEvent::PoseSet {
-            stamp,
+            stamp_ns: stamp.0,
             node: node.to_string(),
             pose: p,
         });
@@ -644,7 +647,7 @@ impl SceneGraph {
         n.attrs.insert(key.to_string(), value.clone());
         self.saw(stamp);
         self.record(|| ChangeEvent::AttributeSet {
-            stamp,
+            stamp_ns: stamp.0,
             node: node.to_string(),
             key: key.to_string(),
             value,

@@ -11,13 +11,13 @@ impl SceneGraph {
     /// robot links, finite geometry.
     pub fn propose(
         &mut self,
-        proposal: Proposal,
+        proposal: StructuralChange,
         stamp: Stamp,
     ) -> std::result::Result<(), Rejection> {
         let res = match &proposal {
-            Proposal::AddNode { spec } => self.add_node(spec, stamp),
-            Proposal::RemoveNode { name } => self.remove_node(name, stamp),
-            Proposal::Reparent {
+            StructuralChange::AddNode(spec) => self.add_node(spec, stamp),
+            StructuralChange::RemoveNode { name } => self.remove_node(name, stamp),
+            StructuralChange::Reparent {
                 name,
                 new_parent,
                 pose,
@@ -35,6 +35,7 @@ impl SceneGraph {
         stamp: Stamp,
     ) -> std::result::Result<(), RejectReason> {
         check_name(&spec.name)?;
+        crate::bus::check_node(spec)?;
         if self.names.contains_key(&spec.name) {
             return Err(RejectReason::DuplicateName(spec.name.clone()));
         }
@@ -56,12 +57,12 @@ impl SceneGraph {
             .ok_or_else(|| RejectReason::UnknownParent(spec.parent.clone()))?;
         let bad = |what: &str| RejectReason::InvalidGeometry(format!("{}: {what}", spec.name));
         let edge = match &spec.edge {
-            EdgeSpec::Fixed { origin } => {
+            Edge::Fixed { origin } => {
                 if !origin.is_valid() {
                     return Err(bad("origin is not finite"));
                 }
                 let o = origin.to_iso();
-                Edge {
+                EdgeState {
                     kind: EdgeKind::Fixed,
                     origin: o,
                     value: 0.0,
@@ -69,12 +70,12 @@ impl SceneGraph {
                     history: VecDeque::new(),
                 }
             }
-            EdgeSpec::Free { pose } => {
+            Edge::Free { pose } => {
                 if !pose.is_valid() {
                     return Err(bad("pose is not finite"));
                 }
                 let p = pose.to_iso();
-                let mut e = Edge {
+                let mut e = EdgeState {
                     kind: EdgeKind::Free,
                     origin: Isometry3::identity(),
                     value: 0.0,
@@ -84,7 +85,7 @@ impl SceneGraph {
                 e.push(self.history_len, stamp, 0.0, p);
                 e
             }
-            EdgeSpec::Joint {
+            Edge::Joint {
                 joint,
                 kind,
                 origin,
@@ -102,7 +103,7 @@ impl SceneGraph {
                 let axis = Unit::try_new(Vector3::from(*axis), 1e-12)
                     .filter(|a| a.iter().all(|v| v.is_finite()))
                     .ok_or_else(|| bad("joint axis is zero or not finite"))?;
-                let mut e = Edge {
+                let mut e = EdgeState {
                     kind: EdgeKind::Joint {
                         joint: joint.clone(),
                         kind: *kind,
@@ -135,8 +136,12 @@ impl SceneGraph {
             node_type,
             parent: Some(parent),
             children: Vec::new(),
-            attrs: spec.attrs.clone(),
-            camera: spec.camera.clone(),
+            attrs: spec
+                .attributes
+                .iter()
+                .map(|a| (a.key.clone(), a.value.clone()))
+                .collect(),
+            camera: spec.camera.intrinsics().cloned(),
             collision: spec.collision.clone(),
             edge,
             depth,
@@ -147,7 +152,7 @@ impl SceneGraph {
         }
         self.saw(stamp);
         self.record(|| ChangeEvent::NodeAdded {
-            stamp,
+            stamp_ns: stamp.0,
             spec: Box::new(spec.clone()),
         });
         Ok(())
@@ -206,7 +211,7 @@ impl SceneGraph {
         self.names.remove(name);
         self.saw(stamp);
         self.record(|| ChangeEvent::NodeRemoved {
-            stamp,
+            stamp_ns: stamp.0,
             name: name.to_string(),
         });
         Ok(())
@@ -216,7 +221,7 @@ impl SceneGraph {
         &mut self,
         name: &str,
         new_parent: &str,
-        pose: &Pose,
+        pose: &Transform,
         stamp: Stamp,
     ) -> std::result::Result<(), RejectReason> {
         let (id, n) = self.unprotected_node(name)?;
@@ -255,7 +260,7 @@ impl SceneGraph {
         if let Some(n) = self.node_mut(id) {
             n.parent = Some(np);
             // The old history is relative to the old parent: restart it.
-            n.edge = Edge {
+            n.edge = EdgeState {
                 kind: EdgeKind::Free,
                 origin: Isometry3::identity(),
                 value: 0.0,
@@ -267,7 +272,7 @@ impl SceneGraph {
         self.update_depths(id);
         self.saw(stamp);
         self.record(|| ChangeEvent::Reparented {
-            stamp,
+            stamp_ns: stamp.0,
             name: name.to_string(),
             new_parent: new_parent.to_string(),
             pose: *pose,
@@ -291,13 +296,16 @@ impl SceneGraph {
     }
 
     /// Declares a body part for the `reachable` predicate.
-    pub fn declare_body_part(&mut self, part: BodyPartSpec, stamp: Stamp) -> Result<()> {
+    pub fn declare_body_part(&mut self, part: BodyPart, stamp: Stamp) -> Result<()> {
         for f in [&part.robot, &part.base_frame, &part.tip_frame] {
             self.id(f)?;
         }
         self.body_parts.insert(part.name.clone(), part.clone());
         self.saw(stamp);
-        self.record(|| ChangeEvent::BodyPartDeclared { stamp, part });
+        self.record(|| ChangeEvent::BodyPartDeclared {
+            stamp_ns: stamp.0,
+            part,
+        });
         Ok(())
     }
 
@@ -319,7 +327,7 @@ impl SceneGraph {
             agent,
             NodeType::Robot,
             parent,
-            Pose::from_iso(pose),
+            Transform::from_iso(pose),
         )];
         // Links parents-first: BFS from the root.
         let mut queue = VecDeque::from([model.root]);
@@ -332,11 +340,11 @@ impl SceneGraph {
             name: root.name.clone(),
             node_type: NodeType::Link.name().into(),
             parent: agent.into(),
-            edge: EdgeSpec::Fixed {
-                origin: Pose::default(),
+            edge: Edge::Fixed {
+                origin: Transform::default(),
             },
-            attrs: BTreeMap::new(),
-            camera: None,
+            attributes: Vec::new(),
+            camera: Camera::None,
             collision: root.collision.clone(),
         });
         while let Some(li) = queue.pop_front() {
@@ -344,12 +352,12 @@ impl SceneGraph {
                 let j = &model.joints[ji];
                 let child = &model.links[j.child];
                 let edge = if j.kind.is_movable() {
-                    EdgeSpec::Joint {
+                    Edge::Joint {
                         joint: j.name.clone(),
                         kind: j.kind,
-                        origin: Pose::from_iso(&j.origin),
+                        origin: Transform::from_iso(&j.origin),
                         axis: [j.axis.x, j.axis.y, j.axis.z],
-                        limits: LimitsSpec {
+                        limits: JointLimits {
                             lower: j.limits.lower,
                             upper: j.limits.upper,
                             velocity: j.limits.velocity,
@@ -358,8 +366,8 @@ impl SceneGraph {
                         value: 0.0_f64.clamp(j.limits.lower, j.limits.upper),
                     }
                 } else {
-                    EdgeSpec::Fixed {
-                        origin: Pose::from_iso(&j.origin),
+                    Edge::Fixed {
+                        origin: Transform::from_iso(&j.origin),
                     }
                 };
                 specs.push(NodeSpec {
@@ -367,8 +375,8 @@ impl SceneGraph {
                     node_type: NodeType::Link.name().into(),
                     parent: model.links[j.parent].name.clone(),
                     edge,
-                    attrs: BTreeMap::new(),
-                    camera: None,
+                    attributes: Vec::new(),
+                    camera: Camera::None,
                     collision: child.collision.clone(),
                 });
                 queue.push_back(j.child);
@@ -379,11 +387,11 @@ impl SceneGraph {
                 name: c.name.clone(),
                 node_type: NodeType::Camera.name().into(),
                 parent: c.frame.clone(),
-                edge: EdgeSpec::Fixed {
-                    origin: Pose::default(),
+                edge: Edge::Fixed {
+                    origin: Transform::default(),
                 },
-                attrs: BTreeMap::new(),
-                camera: Some(c.clone()),
+                attributes: Vec::new(),
+                camera: Camera::Pinhole(c.clone()),
                 collision: Vec::new(),
             });
         }
@@ -393,9 +401,7 @@ impl SceneGraph {
         for s in &specs {
             trial.add_node(s, stamp).map_err(|reason| {
                 DrError::Rejected(Box::new(Rejection {
-                    proposal: Box::new(Proposal::AddNode {
-                        spec: Box::new(s.clone()),
-                    }),
+                    proposal: Box::new(StructuralChange::AddNode(Box::new(s.clone()))),
                     reason,
                 }))
             })?;
@@ -403,9 +409,7 @@ impl SceneGraph {
         for s in &specs {
             self.add_node(s, stamp).map_err(|reason| {
                 DrError::Rejected(Box::new(Rejection {
-                    proposal: Box::new(Proposal::AddNode {
-                        spec: Box::new(s.clone()),
-                    }),
+                    proposal: Box::new(StructuralChange::AddNode(Box::new(s.clone()))),
                     reason,
                 }))
             })?;
@@ -420,7 +424,7 @@ impl SceneGraph {
                 let tip = chain.tip.clone();
                 self.set_attr(&tip, attr::EFFECTOR, AttrValue::Bool(true), stamp)?;
                 self.declare_body_part(
-                    BodyPartSpec {
+                    BodyPart {
                         name: part.to_string(),
                         robot: agent.to_string(),
                         base_frame,
