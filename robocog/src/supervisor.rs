@@ -95,9 +95,10 @@ enum Event {
     MachineLost {
         machine: String,
     },
-    /// What a machine that came back still runs.
+    /// What a machine that came back still runs (the answer to status call `attempt`).
     Reconciled {
         machine: String,
+        attempt: u32,
         running: Result<Vec<AgentChild>, String>,
     },
 }
@@ -562,8 +563,14 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
                     ms.machine_lost(&machine, &mut children);
                 }
             }
-            Some(Event::Reconciled { machine, running }) => {
-                remote::reconciled(&machine, running, &mut children, &mut pending);
+            Some(Event::Reconciled {
+                machine,
+                attempt,
+                running,
+            }) => {
+                if let Some(ms) = &machines {
+                    ms.status_answered(machine, attempt, running, &mut children, &mut pending, &tx);
+                }
             }
             None => {
                 #[expect(

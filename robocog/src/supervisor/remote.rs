@@ -24,7 +24,15 @@ pub(super) struct Machines {
     seen: BTreeSet<String>,
     since: Instant,
     timeout: Duration,
+    /// How long a status call to an agent back on the bus waits for its answer.
+    pub(super) status_timeout: Duration,
 }
+
+/// How long a status call waits for an agent that came back ([`Machines::status_timeout`]).
+const STATUS_TIMEOUT: Duration = Duration::from_secs(10);
+/// The pause before a status call that failed is sent again (the agent is on the bus: slow, or
+/// its routes not there yet).
+const STATUS_RETRY: Duration = Duration::from_secs(1);
 
 impl Machines {
     /// The launcher's view of the other machines, their agents not heard of yet; they have
@@ -42,6 +50,7 @@ impl Machines {
             seen: BTreeSet::new(),
             since: Instant::now(),
             timeout,
+            status_timeout: STATUS_TIMEOUT,
         }
     }
 
@@ -94,20 +103,71 @@ impl Machines {
             say(format!(
                 "machine {machine} is back: asking its agent what still runs there"
             ));
-            let bus = self.bus.clone();
-            let request = AgentRequest {
-                launch_id: self.launch_id.clone(),
-                graph: self.graph.clone(),
-                action: AgentAction::Status,
-                ..Default::default()
-            };
-            let tx = tx.clone();
-            tokio::spawn(async move {
-                let running = call_agent(&bus, &machine, &request, Duration::from_secs(10))
-                    .await
-                    .map(|r| r.running);
-                let _ = tx.send(Event::Reconciled { machine, running }).await;
-            });
+            self.ask_status(machine, 1, tx);
+        }
+    }
+
+    /// Ask `machine`'s agent what runs there (after a pause, from the second attempt on); the
+    /// answer comes as [`Event::Reconciled`].
+    pub(super) fn ask_status(&self, machine: String, attempt: u32, tx: &mpsc::Sender<Event>) {
+        let bus = self.bus.clone();
+        let request = AgentRequest {
+            launch_id: self.launch_id.clone(),
+            graph: self.graph.clone(),
+            action: AgentAction::Status,
+            ..Default::default()
+        };
+        let timeout = self.status_timeout;
+        let tx = tx.clone();
+        tokio::spawn(async move {
+            if attempt > 1 {
+                #[expect(
+                    clippy::disallowed_methods,
+                    reason = "a pause between calls over the network to a real machine's agent"
+                )]
+                tokio::time::sleep(STATUS_RETRY).await;
+            }
+            let running = call_agent(&bus, &machine, &request, timeout)
+                .await
+                .map(|r| r.running);
+            let _ = tx
+                .send(Event::Reconciled {
+                    machine,
+                    attempt,
+                    running,
+                })
+                .await;
+        });
+    }
+
+    /// The answer of status call number `attempt` to `machine`'s agent. An answer reconciles
+    /// (see [`reconciled`]). A failed call says so and changes nothing: the components there
+    /// stay out of reach, never counted as stopped on a call's failure; while the agent is on
+    /// the bus (slow, or its routes not there yet) it is asked again, and an agent that left
+    /// again is asked when it is back.
+    pub(super) fn status_answered(
+        &self,
+        machine: String,
+        attempt: u32,
+        running: Result<Vec<AgentChild>, String>,
+        children: &mut HashMap<String, Child>,
+        pending: &mut VecDeque<Event>,
+        tx: &mpsc::Sender<Event>,
+    ) {
+        match running {
+            Ok(running) => reconciled(&machine, running, children, pending),
+            Err(why) if self.up.contains(&machine) => {
+                // Said at calls 1, 2, 4, 8, ...: an agent that never answers does not fill the log.
+                if attempt.is_power_of_two() {
+                    say(format!(
+                        "{why}: machine {machine}'s agent is on the bus but did not say what runs there (status call {attempt}); its components stay out of reach, not stopped; asking again"
+                    ));
+                }
+                self.ask_status(machine, attempt + 1, tx);
+            }
+            Err(why) => say(format!(
+                "{why}: machine {machine} left the bus again before its agent said what runs there; it is asked again when it is back"
+            )),
         }
     }
 
@@ -195,19 +255,10 @@ pub(super) fn started(c: &mut Child, result: Result<u32, String>) -> bool {
 )]
 pub(super) fn reconciled(
     machine: &str,
-    running: Result<Vec<AgentChild>, String>,
+    running: Vec<AgentChild>,
     children: &mut HashMap<String, Child>,
     pending: &mut VecDeque<Event>,
 ) {
-    let running = match running {
-        Ok(r) => r,
-        Err(why) => {
-            say(format!(
-                "{why}: it did not say what runs on machine {machine}; its components there count as stopped"
-            ));
-            Vec::new()
-        }
-    };
     let mut names: Vec<String> = Vec::new();
     for c in children.values_mut() {
         if c.remote.as_deref() != Some(machine) || c.state != State::Unreachable {
@@ -332,4 +383,184 @@ pub(super) fn spawn_remote(c: &mut Child, ms: &Machines, tx: &mpsc::Sender<Event
             })
             .await;
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::manifest::{Component, Origin, RestartPolicy};
+    use interfaces::msg::agent::AgentReply;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    use std::sync::{Arc, Mutex};
+
+    #[expect(
+        clippy::disallowed_methods,
+        reason = "a child's start time, which this test does not read"
+    )]
+    fn child_on(machine: &str, name: &str, generation: u64) -> Child {
+        Child {
+            spec: Component {
+                name: name.into(),
+                binary: "fixture_node".into(),
+                args: Vec::new(),
+                env: Default::default(),
+                depends_on: Vec::new(),
+                restart: RestartPolicy::OnFailure,
+                max_restarts: 3,
+                backoff: Duration::from_millis(500),
+                required: false,
+                ready_timeout: Duration::from_secs(10),
+                stop_timeout: Duration::from_secs(5),
+                hardware: Vec::new(),
+                completes_graph: false,
+                external_inputs: Vec::new(),
+                origin: Origin {
+                    file: "graph.toml".into(),
+                    line: 1,
+                },
+                dir: ".".into(),
+                machine: Some(machine.into()),
+            },
+            binary: "fixture_node".into(),
+            state: State::Up,
+            pid: Some(42),
+            generation,
+            restarts: 0,
+            started: Instant::now(),
+            exit: None,
+            tail: Arc::new(Mutex::new(VecDeque::new())),
+            prefix: format!("{machine}/{name} |"),
+            remote: Some(machine.into()),
+        }
+    }
+
+    /// An agent back on the bus that answers its first status call late: the launcher says so,
+    /// asks again, and its components there are up again, never counted as stopped.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_slow_agent_is_asked_again_and_its_components_are_not_counted_stopped() {
+        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
+            .await
+            .unwrap();
+        let args = interfaces::ConnectArgs::to_router(
+            &endpoint,
+            &format!("unit-slow-agent-{}", std::process::id()),
+        );
+        let launcher = Bus::open(&args, "launcher").await.unwrap();
+        let agent = Bus::open(&args, "agent").await.unwrap();
+        let status_timeout = Duration::from_millis(300);
+        let calls = Arc::new(AtomicU32::new(0));
+        let served = calls.clone();
+        let _serve = agent
+            .serve(
+                &interfaces::topics::agent_control("speech").unwrap(),
+                move |req: AgentRequest| {
+                    let call = served.fetch_add(1, Ordering::SeqCst);
+                    async move {
+                        assert_eq!(req.action, AgentAction::Status);
+                        if call == 0 {
+                            // Slow: busy for three times the launcher's patience.
+                            #[expect(
+                                clippy::disallowed_methods,
+                                reason = "a slow agent, slow on the wall as a real one is"
+                            )]
+                            tokio::time::sleep(status_timeout * 3).await;
+                        }
+                        Ok(AgentReply {
+                            machine: "speech".into(),
+                            running: vec![AgentChild {
+                                component: "talker".into(),
+                                generation: 1,
+                                pid: 42,
+                            }],
+                            ..Default::default()
+                        })
+                    }
+                },
+            )
+            .await
+            .unwrap();
+
+        let mut ms = Machines::new(
+            launcher,
+            "launch-1".into(),
+            "graph".into(),
+            Duration::from_secs(30),
+        );
+        ms.status_timeout = status_timeout;
+        let mut children = HashMap::from([("talker".to_string(), child_on("speech", "talker", 1))]);
+        let mut pending = VecDeque::new();
+        let (tx, mut rx) = mpsc::channel(8);
+        // Up, lost (its link down), back: asked what runs there.
+        ms.machine_up("speech".into(), &tx);
+        ms.machine_lost("speech", &mut children);
+        assert_eq!(children["talker"].state, State::Unreachable);
+        ms.machine_up("speech".into(), &tx);
+
+        let mut answers = Vec::new();
+        while children["talker"].state == State::Unreachable {
+            #[expect(
+                clippy::disallowed_methods,
+                reason = "a test's guard against a hang, on the wall"
+            )]
+            let event = tokio::time::timeout(Duration::from_secs(30), rx.recv())
+                .await
+                .expect("a status answer within 30 s")
+                .expect("the channel open");
+            let Event::Reconciled {
+                machine,
+                attempt,
+                running,
+            } = event
+            else {
+                continue;
+            };
+            answers.push((attempt, running.is_ok()));
+            ms.status_answered(machine, attempt, running, &mut children, &mut pending, &tx);
+            assert!(
+                pending.is_empty(),
+                "nothing counted as stopped after {answers:?}"
+            );
+            assert!(answers.len() < 5, "answers: {answers:?}");
+        }
+        assert_eq!(answers, [(1, false), (2, true)]);
+        assert_eq!(children["talker"].state, State::Up);
+        assert_eq!(children["talker"].pid, Some(42));
+        assert_eq!(calls.load(Ordering::SeqCst), 2);
+    }
+
+    /// A failed status call for an agent that left the bus again asks nothing more: it is
+    /// asked when it is back.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_failed_status_call_for_an_agent_that_left_again_changes_nothing() {
+        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
+            .await
+            .unwrap();
+        let args = interfaces::ConnectArgs::to_router(
+            &endpoint,
+            &format!("unit-gone-agent-{}", std::process::id()),
+        );
+        let launcher = Bus::open(&args, "launcher").await.unwrap();
+        let ms = Machines::new(
+            launcher,
+            "launch-1".into(),
+            "graph".into(),
+            Duration::from_secs(30),
+        );
+        let mut child = child_on("speech", "talker", 1);
+        child.state = State::Unreachable;
+        let mut children = HashMap::from([("talker".to_string(), child)]);
+        let mut pending = VecDeque::new();
+        let (tx, mut rx) = mpsc::channel(8);
+        ms.status_answered(
+            "speech".into(),
+            1,
+            Err("machine speech's agent: no answer".into()),
+            &mut children,
+            &mut pending,
+            &tx,
+        );
+        assert!(pending.is_empty());
+        assert_eq!(children["talker"].state, State::Unreachable);
+        assert!(rx.try_recv().is_err(), "not asked again while it is away");
+    }
 }
