@@ -434,17 +434,20 @@ mod tests {
         }
     }
 
+    /// A router of its own, and the connection flags of a fresh namespace on it.
+    async fn bus_of_its_own(test: &str) -> (zenoh::Session, interfaces::ConnectArgs) {
+        let (router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
+            .await
+            .unwrap();
+        let ns = format!("unit-{test}-{}", std::process::id());
+        (router, interfaces::ConnectArgs::to_router(&endpoint, &ns))
+    }
+
     /// An agent back on the bus that answers its first status call late: the launcher says so,
     /// asks again, and its components there are up again, never counted as stopped.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_slow_agent_is_asked_again_and_its_components_are_not_counted_stopped() {
-        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
-            .await
-            .unwrap();
-        let args = interfaces::ConnectArgs::to_router(
-            &endpoint,
-            &format!("unit-slow-agent-{}", std::process::id()),
-        );
+        let (_router, args) = bus_of_its_own("slow-agent").await;
         let launcher = Bus::open(&args, "launcher").await.unwrap();
         let agent = Bus::open(&args, "agent").await.unwrap();
         let status_timeout = Duration::from_millis(300);
@@ -532,13 +535,7 @@ mod tests {
     /// asked when it is back.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_failed_status_call_for_an_agent_that_left_again_changes_nothing() {
-        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
-            .await
-            .unwrap();
-        let args = interfaces::ConnectArgs::to_router(
-            &endpoint,
-            &format!("unit-gone-agent-{}", std::process::id()),
-        );
+        let (_router, args) = bus_of_its_own("gone-agent").await;
         let launcher = Bus::open(&args, "launcher").await.unwrap();
         let ms = Machines::new(
             launcher,
