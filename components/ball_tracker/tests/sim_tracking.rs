@@ -182,6 +182,34 @@ fn moving_ball_1mps_tracked_without_loss() {
     assert!(max < 0.01, "max error {:.1} mm", max * 1000.0);
 }
 
+/// A loaded machine drops camera frames: right after the detection (no velocity known yet) a
+/// gap of 200 ms, then gaps of 2 to 4 frames. The ball, moving at 1 m/s, is found in every frame
+/// that arrives.
+#[test]
+fn frame_gaps_of_a_loaded_machine_do_not_lose_a_moving_ball() {
+    let cam = camera();
+    let mut r = SimRenderer::new(cam, SensorModel::default(), 7);
+    let mut t = tracker();
+    let mut scene = Scene::default();
+    let mut i = 0;
+    let mut gaps = [15, 2, 3, 4, 1, 1, 3, 2, 4, 1, 2, 3].iter().cycle();
+    let mut frames = 0;
+    while i < 150 {
+        let now = i as f64 * DT;
+        let (p, v) = circle(now, 1.0);
+        let mut b = ball(p);
+        b.velocity_w_mps = v;
+        scene.ball = Some(b);
+        let out = t.process(&r.render(&scene, now), now).unwrap();
+        assert_eq!(out.state, TrackState::Tracking, "frame {i}: {out:?}");
+        assert!(out.window.is_some(), "frame {i}: not found: {out:?}");
+        assert!(err_m(&out, &truth_c(&cam, &p)) < 0.02, "frame {i}: {out:?}");
+        frames += 1;
+        i += gaps.next().unwrap();
+    }
+    assert!(frames > 40);
+}
+
 #[test]
 fn moving_ball_with_motion_blur_tracked_without_loss() {
     let sensor = SensorModel {

@@ -93,6 +93,9 @@ impl Default for TrackerConfig {
 
 /// The shortest time between two frames over which the image velocity is measured, s.
 pub const MIN_VELOCITY_DT_S: f32 = 0.005;
+/// Time since the ball was last held after which frames were dropped (three at 30 Hz): a ball
+/// not where predicted is then looked for over the whole frame.
+pub const FRAME_GAP_S: f32 = 0.1;
 /// The fastest a tracked ball is taken to cross the image, px/s (a ball thrown across a 640 px
 /// image in a fifth of a second).
 pub const MAX_IMAGE_SPEED_PX_PER_S: f32 = 3200.0;
@@ -122,6 +125,9 @@ pub struct TrackerStats {
     pub frames_without_depth: u64,
     /// Tracking frames whose result was rejected.
     pub rejected_results: u64,
+    /// Tracking frames after a frame gap ([`FRAME_GAP_S`]) where the ball was not where
+    /// predicted and was looked for over the whole frame.
+    pub gap_searches: u64,
 }
 
 /// A floating window: centre and half sizes, pixels.
@@ -341,6 +347,21 @@ impl BallTracker {
         } else {
             None
         };
+        // Not where predicted, and long enough since it was last held that it can be anywhere
+        // the search did not cover (a frame gap on a loaded machine, a turn the velocity did not
+        // foresee): look for it over the whole frame, in this frame. Found, the track goes on
+        // from there (no event: it was never lost).
+        let searched = predicted.hw.max(predicted.hh) * (2.0 + (track.failures as f32).min(4.0));
+        if has_depth
+            && !matches!(result, Some((_, m)) if m.size_ok)
+            && dt >= FRAME_GAP_S
+            && MAX_IMAGE_SPEED_PX_PER_S * dt > searched
+        {
+            self.stats.gap_searches += 1;
+            if self.detect(frame, target, now_s, out) {
+                return;
+            }
+        }
         match result {
             Some((win, m)) if m.size_ok => {
                 // Frames closer in time than MIN_VELOCITY_DT_S (two frames rendered from one
