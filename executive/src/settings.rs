@@ -8,6 +8,7 @@
 //! [touch]
 //! arm = "left_arm_7"
 //! courtesy_delay_s = 5.0
+//! tracker_restart_grace_s = 6.0
 //! ball_hue_deg = 51.7
 //! arm_rest = [{ joint = "left_elbow", position = -0.2 }]
 //!
@@ -151,6 +152,12 @@ pub struct TouchSettings {
     pub ball_moved_m: f64,
     /// How long the arm takes to go home before another touch is a fresh start (s).
     pub homing_s: f64,
+    /// How long the game rides out a restart of the ball tracker while its eyes follow the ball
+    /// (s): the tracker left the bus or came back as a new process, and the ball is taken to be
+    /// where it was until the new tracker holds it again. Past this it is lost, as when the
+    /// tracker falls silent with its camera. Longer than a restart (the launcher's back-off,
+    /// the process's start) and a detection.
+    pub tracker_restart_grace_s: f64,
     /// The arm's rest posture (JointGoal on `body/joint_goal`).
     pub arm_rest: Vec<JointRest>,
     /// The head's rest posture when the game ends.
@@ -199,6 +206,7 @@ impl Default for TouchSettings {
             scan_points: None,
             ball_moved_m: 0.05,
             homing_s: 2.0,
+            tracker_restart_grace_s: 6.0,
             arm_rest: rest(&LEFT_ARM_JOINTS),
             head_rest: rest(&NECK_JOINTS),
             rest_max_speed: 0.6,
@@ -233,6 +241,7 @@ impl TouchSettings {
             ("scan_dwell_s", self.scan_dwell_s),
             ("scan_move_timeout_s", self.scan_move_timeout_s),
             ("homing_s", self.homing_s),
+            ("tracker_restart_grace_s", self.tracker_restart_grace_s),
             ("ball_diameter_m", self.ball_diameter_m),
             ("ball_moved_m", self.ball_moved_m),
             ("touch_tolerance_m", self.touch_tolerance_m),
@@ -303,6 +312,7 @@ mod tests {
         let s = Settings::parse("", "test").unwrap();
         assert_eq!(s.touch.arm, "left_arm_7");
         assert_eq!(s.touch.courtesy_delay_s, 5.0);
+        assert_eq!(s.touch.tracker_restart_grace_s, 6.0);
         assert_eq!(s.touch.arm_rest.len(), 7);
         // The default scan: six points in front of the robot, within the neck's reach, the
         // first at chest height at arm's length in front of the touching (left) arm, the second
@@ -358,5 +368,9 @@ mod tests {
         // The coach's table belongs to the same file.
         assert!(Settings::parse("[coach]\n[propose]\nprotected = []\n", "f").is_ok());
         assert!(Settings::parse("[touch]\nball_hue_deg = 400.0\n", "f").is_err());
+        let e = Settings::parse("[touch]\ntracker_restart_grace_s = 0.0\n", "f").unwrap_err();
+        assert!(e.to_string().contains("tracker_restart_grace_s"), "{e}");
+        let s = Settings::parse("[touch]\ntracker_restart_grace_s = 10.0\n", "f").unwrap();
+        assert_eq!(s.touch.tracker_restart_grace_s, 10.0);
     }
 }

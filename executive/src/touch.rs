@@ -579,7 +579,7 @@ const WELL_IN_VIEW_DEG: f64 = 18.0;
 const STILL_HELD_S: f64 = 1.0;
 
 /// A ball the tracker holds (found, tracking, with a centre).
-fn held(track: &BallTrack) -> bool {
+pub(crate) fn held(track: &BallTrack) -> bool {
     track.found && track.state == BallTrackState::Tracking && track.has_centre_m
 }
 

@@ -622,6 +622,8 @@ async fn a_camera_stopped_mid_game_is_said_and_the_game_carries_on() {
     assert!(game.killed.is_some());
     assert!(game.said_any("can't see"), "{:?}", game.said);
     assert!(game.said_any("can see again"), "{:?}", game.said);
+    // A stalled camera is no restart of the tracker (its tokens stay): the ball is lost.
+    assert!(game.said_any("lost the ball"), "{:?}", game.said);
     assert!(
         game.output
             .iter()
@@ -673,6 +675,9 @@ async fn an_unreachable_ball_is_explained() {
     assert!(game.said_any("reach"), "{:?}", game.said);
 }
 
+/// The ball tracker is killed (SIGKILL) while the robot looks at the ball, and the launcher
+/// restarts it. The Executive rides the restart out: no "lost the ball", no search again; it
+/// sends the new tracker the target, the tracker holds the ball again and the game carries on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
     let game = play_with(
@@ -684,15 +689,67 @@ async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
     .await;
     check_ok(&game);
     assert!(game.killed.is_some());
-    // The launcher restarted it (a new process), the robot said so and found the ball again.
+    // The launcher restarted it (a new process); the Executive rode the restart out until the
+    // new tracker held the ball.
     assert!(
         game.output
             .iter()
             .any(|l| l.contains("ball_tracker") && l.contains("restart")),
         "no restart in the output"
     );
-    assert!(game.said_any("lost the ball"), "{:?}", game.said);
-    game.entered_in_order(&["tracking", "searching", "tracking", "reaching", "finished"])
+    for line in ["riding out its restart", "the ball tracker is back"] {
+        assert!(
+            game.output.iter().any(|l| l.contains(line)),
+            "no {line:?} in the output:\n{}",
+            game.output.join("\n")
+        );
+    }
+    assert!(!game.said_any("lost the ball"), "{:?}", game.said);
+    game.entered_in_order(&["tracking", "reaching", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    // The eyes never searched again once they had the ball.
+    let first = game
+        .entered
+        .iter()
+        .position(|s| s.contains("tracking"))
+        .unwrap();
+    assert!(
+        !game.entered[first..]
+            .iter()
+            .any(|s| s.contains("searching")),
+        "searched again: {:?}",
+        game.entered
+    );
+}
+
+/// The ball tracker is killed as the hand reaches the ball (the case): the Executive
+/// rides its restart out, the hand stays on the ball, and "you touched it" is thanked, not
+/// answered with "I am not touching the ball".
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tracker_killed_while_the_arm_touches_is_ridden_out() {
+    let game = play_with(
+        "tracker_restart_touching",
+        &[],
+        Duration::from_secs(200),
+        Some(("-> arm/reaching/touching", "ball_tracker")),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    let out = game.output.join("\n");
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("ball_tracker stopped") && l.contains("restart 1/")),
+        "no restart in the output:\n{out}"
+    );
+    for line in ["riding out its restart", "the ball tracker is back"] {
+        assert!(out.contains(line), "no {line:?} in the output:\n{out}");
+    }
+    assert!(!game.said_any("lost the ball"), "{:?}", game.said);
+    assert!(!game.said_any("not touching"), "{:?}", game.said);
+    assert!(game.said_any("moving my arm back"), "{:?}", game.said);
+    game.entered_in_order(&["touching", "homing", "finished"])
         .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
 }
 

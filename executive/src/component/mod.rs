@@ -18,6 +18,14 @@
 //! Calls: `body/joint_goal` (the rest postures; retried a few times while the reach component
 //! still owns the joints), `dr/propose`, `dr/get_node`.
 //!
+//! The tracker watchdog: with the eyes on the ball, 1.5 s without `vision/ball` from a tracker
+//! still on the bus (its camera stalled, it hangs) is a lost ball. A tracker that left the bus
+//! (its writer token on `vision/ball` went: killed, crashed) or came back as a new process (its
+//! track numbers start again, or it has no target) is an anomaly ridden out for
+//! `tracker_restart_grace_s`: nothing said, the states kept, the target sent again, the ball
+//! taken to be where it was until the new tracker holds it (a ball that moved meanwhile is
+//! `ball:moved`); past the grace it is lost.
+//!
 //! Time: the machine's `now` is the component clock's monotonic reading ([`interfaces::clock`]),
 //! and the loop sleeps on that clock until the machine's next timer or the tracker watchdog's
 //! deadline; so with `--clock bus` the timers, the watchdog and the camera announcements follow
@@ -52,6 +60,8 @@ use crate::touch::{self, LogLine, Output, TouchGame};
 
 mod touch_loop;
 use touch_loop::*;
+mod tracker_watch;
+use tracker_watch::*;
 
 /// Which game the Executive plays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -391,188 +401,4 @@ impl interfaces::node::Component for Executive {
     clippy::disallowed_methods,
     reason = "the tests' guards wait for a real bus and a spawned Executive on the wall"
 )]
-mod tests {
-    use super::*;
-    use interfaces::msg::vision::CameraStatus;
-
-    fn status(streaming: bool) -> CameraStatus {
-        CameraStatus {
-            driver: "freenect".into(),
-            streaming,
-            detail: "camera lost: unplugged".into(),
-            ..Default::default()
-        }
-    }
-
-    /// The touch game's process loop on a virtual clock: its timers and the tracker watchdog
-    /// fire when the clock is moved to their deadline, never before, and never from the wall.
-    /// Every input first fires the timers due, so an input sent just before a deadline is
-    /// stepped alone and the timer's step follows when the clock reaches it: no sleeps.
-    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-    async fn the_touch_loop_runs_its_timers_and_watchdog_on_a_virtual_clock() {
-        use interfaces::bus::BusOptions;
-        use interfaces::msg::command::{Command, CommandSource, Game, GameCommand};
-        use interfaces::msg::tracking::BallTrack;
-
-        let (_router, endpoint) = interfaces::router::open_router("tcp/127.0.0.1:0")
-            .await
-            .unwrap();
-        let args = interfaces::ConnectArgs::to_router(
-            &endpoint,
-            &format!("unit-exec-clock-{}", std::process::id()),
-        );
-        let clock = Clock::virtual_unset();
-        let options = BusOptions {
-            announce: true,
-            clock: clock.clone(),
-            ..Default::default()
-        };
-        let exec_bus = Bus::open_with(&args, "executive", options).await.unwrap();
-        let bus = Bus::open(&args, "unit-test").await.unwrap();
-        let steps = bus
-            .subscriber(&topics::EXECUTIVE_TRANSITIONS)
-            .await
-            .unwrap();
-        let commands = bus.publisher(&topics::GAME_COMMAND).await.unwrap();
-        let events = bus.publisher(&topics::VISION_BALL_EVENTS).await.unwrap();
-        let tracks = bus.publisher(&topics::VISION_BALL).await.unwrap();
-        let config = Config {
-            game: GameKind::Touch,
-            settings: None,
-            print_diagram: false,
-            print_dot: false,
-            exit_when_finished: false,
-            state_dir: None,
-            hearing_from: vec![],
-            hearing_grace_s: 5.0,
-        };
-        let (stop, shutdown) = Shutdown::new();
-        let exec = tokio::spawn(run_touch(exec_bus, config, Settings::default(), shutdown));
-        let next = || async {
-            let t = tokio::time::timeout(Duration::from_secs(20), steps.recv())
-                .await
-                .expect("a step within 20 s")
-                .unwrap();
-            (t.event, t.active)
-        };
-        let command = |c: Command| {
-            let commands = &commands;
-            async move {
-                let mut m = GameCommand {
-                    game: Game::Touch,
-                    command: c,
-                    source: CommandSource::Panel,
-                    text: c.phrase().into(),
-                    confidence: 1.0,
-                    ..Default::default()
-                };
-                commands.publish(&mut m).await.unwrap();
-            }
-        };
-        let event = |kind: BallEventKind| {
-            let events = &events;
-            async move {
-                let mut e = BallEvent {
-                    kind,
-                    ..Default::default()
-                };
-                events.publish(&mut e).await.unwrap();
-            }
-        };
-        // The subscriptions meet before the game starts: it starts once the clock has a time.
-        interfaces::Clock::system()
-            .sleep(Duration::from_millis(500))
-            .await;
-        clock.set_ns(1_700_000_000_000_000_000);
-        let s = next().await;
-        assert_eq!(s.1, [touch::state::WAITING]);
-        command(Command::Play).await;
-        assert_eq!(next().await.0, "command:play");
-        command(Command::ScanBall).await;
-        let (e, active) = next().await;
-        assert_eq!(e, "command:scan_ball");
-        assert!(
-            active.iter().any(|a| a == touch::state::LOOKING),
-            "{active:?}"
-        );
-
-        // The scan's move time-out (3 s): not at 2.999 s, at 3 s.
-        clock.advance(Duration::from_millis(2_999));
-        command(Command::Greet).await;
-        assert_eq!(
-            next().await.0,
-            "command:greet",
-            "no timer before its deadline"
-        );
-        clock.advance(Duration::from_millis(1));
-        assert_eq!(next().await.0, "timer:scan");
-
-        // The tracker watchdog (1.5 s without a track while tracking): the clock's, too.
-        event(BallEventKind::Detected).await;
-        assert_eq!(next().await.0, "ball:detected");
-        event(BallEventKind::OutOfView).await;
-        assert_eq!(next().await.0, "ball:out_of_view");
-        let mut t = BallTrack {
-            found: true,
-            state: BallTrackState::Tracking,
-            has_centre_m: true,
-            centre_m: [0.0, 0.0, 0.8],
-            ..Default::default()
-        };
-        tracks.publish(&mut t).await.unwrap();
-        let (e, active) = next().await;
-        assert_eq!(e, "ball:in_view", "the track was heard at this time");
-        assert!(
-            active.iter().any(|a| a == touch::state::TRACKING),
-            "{active:?}"
-        );
-        clock.advance(Duration::from_millis(1_499));
-        command(Command::Greet).await;
-        assert_eq!(
-            next().await.0,
-            "command:greet",
-            "the tracker is not silent yet"
-        );
-        clock.advance(Duration::from_millis(1));
-        let (e, active) = next().await;
-        assert_eq!(e, "ball:lost", "silent for 1.5 s on the clock");
-        assert!(
-            active.iter().any(|a| a == touch::state::LOOKING),
-            "{active:?}"
-        );
-
-        // A jump of a minute: every move time-out of the scan, each at its own deadline.
-        clock.advance(Duration::from_secs(60));
-        for i in 0..20 {
-            assert_eq!(next().await.0, "timer:scan", "time-out #{i} of 20");
-        }
-        stop.send(true).unwrap();
-        exec.await.unwrap().unwrap();
-    }
-
-    #[test]
-    fn the_robot_says_once_when_its_camera_stops_and_once_when_it_is_back() {
-        let t0 = Moment::from_duration(Duration::from_secs(1_000));
-        let at = |s: u64| t0 + Duration::from_secs(s);
-        let mut w = CameraWatch::default();
-        assert_eq!(
-            w.update(&status(true), at(0)),
-            None,
-            "streaming from the start"
-        );
-        assert_eq!(w.update(&status(true), at(1)), None);
-        let (said, log) = w.update(&status(false), at(2)).expect("stopped");
-        assert_eq!(said, Some(CANNOT_SEE));
-        assert!(log.contains("unplugged"), "{log}");
-        assert_eq!(w.update(&status(false), at(3)), None, "said once");
-        assert_eq!(w.update(&status(true), at(4)).unwrap().0, Some(SEE_AGAIN));
-        assert_eq!(w.update(&status(true), at(5)), None);
-        // A flapping camera: logged every time, said again only after CAMERA_REPEAT.
-        let (said, _) = w.update(&status(false), at(6)).unwrap();
-        assert_eq!(said, None);
-        assert_eq!(w.update(&status(true), at(7)).unwrap().0, None);
-        let (said, _) = w.update(&status(false), at(2 + 20)).unwrap();
-        assert_eq!(said, Some(CANNOT_SEE));
-        assert_eq!(w.update(&status(true), at(23)).unwrap().0, Some(SEE_AGAIN));
-    }
-}
+mod tests;

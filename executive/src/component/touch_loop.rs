@@ -1,6 +1,7 @@
 //! The touch game's loop on the bus: commands, ball events and tracks, reach status and the
 //! machine's timers into the touch machine; its outputs (speech, gaze, reaches, the arm sent home
-//! with retries) out; the tracker and camera watchdogs.
+//! with retries) out; the tracker and camera watchdogs (a restart of the tracker is ridden out,
+//! see [`TrackerWatch`]).
 
 use super::*;
 use crate::state_file::StateFile;
@@ -60,54 +61,6 @@ pub(super) async fn send_home(bus: Bus, goal: JointGoal, results: mpsc::Sender<H
         .is_err()
     {
         bus.counters().incr("home_results_dropped");
-    }
-}
-
-/// The touch game's publishers.
-/// How long without `vision/ball` before a tracking game calls the ball lost.
-pub(super) const TRACKER_SILENCE: Duration = Duration::from_millis(1500);
-
-/// Watches the tracker's heartbeat (`vision/ball` comes once per frame, found or not), on the
-/// component's clock.
-#[derive(Debug, Default)]
-pub(super) struct TrackerWatch {
-    last: Option<Moment>,
-    reported: bool,
-    last_resend: Option<Moment>,
-}
-
-impl TrackerWatch {
-    pub(super) fn heard(&mut self, now: Moment) {
-        self.last = Some(now);
-        self.reported = false;
-    }
-    /// When the watchdog is due (a silence of [`TRACKER_SILENCE`] since the tracker was last
-    /// heard, not reported yet), for the loop's sleep.
-    pub(super) fn deadline(&self) -> Option<Moment> {
-        self.last
-            .filter(|_| !self.reported)
-            .map(|t| t + TRACKER_SILENCE)
-    }
-    /// True once per silence of [`TRACKER_SILENCE`] or more (after the tracker was heard).
-    pub(super) fn silent(&mut self, now: Moment) -> bool {
-        match self.deadline() {
-            Some(d) if now >= d => {
-                self.reported = true;
-                true
-            }
-            _ => false,
-        }
-    }
-    /// At most once a second.
-    pub(super) fn may_resend(&mut self, now: Moment) -> bool {
-        if self
-            .last_resend
-            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
-        {
-            return false;
-        }
-        self.last_resend = Some(now);
-        true
     }
 }
 
@@ -240,6 +193,26 @@ impl CameraWatch {
             }
             _ => None,
         }
+    }
+}
+
+/// The anomaly logged when a restart of the tracker starts to be ridden out (`why`): nothing is
+/// said, the machine's states stay, and gaze and reach keep following the DR's `ball`, where the
+/// tracker last put it.
+fn riding_out_line(why: &str, game: &TouchGame, watch: &TrackerWatch) -> LogLine {
+    let at = game.ball_world().map_or("where it was".to_string(), |p| {
+        format!(
+            "where it was, ({:.2}, {:.2}, {:.2}) in world,",
+            p[0], p[1], p[2]
+        )
+    });
+    LogLine {
+        kind: "anomaly",
+        text: format!(
+            "{why}: riding out its restart, the ball taken to be {at} for up to {:.1} s",
+            watch.grace().as_secs_f64()
+        ),
+        distance_m: -1.0,
     }
 }
 
@@ -383,6 +356,9 @@ pub(super) async fn run_touch(
     );
     let mut voices =
         interfaces::liveliness::Readers::watch_writers(&bus, &topics::GAME_COMMAND).await?;
+    // Who publishes the tracks: a tracker that leaves (killed, crashed) is ridden out.
+    let mut trackers =
+        interfaces::liveliness::Readers::watch_writers(&bus, &topics::VISION_BALL).await?;
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -419,16 +395,17 @@ pub(super) async fn run_touch(
     *lock(&snapshot) = snapshot_of(&game, &mermaid);
     out.emit(o).await?;
     kept.save(game.resume_record(), bus.counters());
-    let mut watch = TrackerWatch::default();
+    let mut watch = TrackerWatch::new(Duration::from_secs_f64(
+        settings.touch.tracker_restart_grace_s,
+    ));
+    watch.writers(trackers.now(), false, clock.now());
     // The voice's components already there (later changes come from `voices.changed()`).
     let _ = hearing.update(voices.any_of(hearing.names()), clock.now());
     loop {
         // Wake on the clock for the machine's next timer, or the tracker watchdog's.
         let deadline = [
             game.next_deadline().map(Moment::from_duration),
-            watch
-                .deadline()
-                .filter(|_| game.machine().is_active(touch::state::TRACKING)),
+            watch.deadline(game.machine().is_active(touch::state::TRACKING)),
             hearing.deadline(),
         ]
         .into_iter()
@@ -447,7 +424,19 @@ pub(super) async fn run_touch(
                 while let Some(newer) = tracks.try_recv() {
                     t = newer;
                 }
-                watch.heard(clock.now());
+                let tracking = game.machine().is_active(touch::state::TRACKING);
+                match watch.heard(&t, touch::held(&t), tracking, clock.now()) {
+                    TrackNews::Restarted => {
+                        let why = "the ball tracker restarted (its track numbers start again, or it has no target)";
+                        out.log_line(riding_out_line(why, &game, &watch)).await?;
+                    }
+                    TrackNews::Back => out.log_line(LogLine {
+                        kind: "anomaly",
+                        text: "the ball tracker is back and holds the ball: the game carries on".into(),
+                        distance_m: -1.0,
+                    }).await?,
+                    TrackNews::Nothing => {}
+                }
                 if t.state == BallTrackState::Waiting && wants_tracker(&game) && watch.may_resend(clock.now()) {
                     // A tracker without a target while the game needs one: it was restarted.
                     out.log_line(LogLine {
@@ -457,20 +446,19 @@ pub(super) async fn run_touch(
                     }).await?;
                     let mut target = ball_target(&settings.touch);
                     out.target.publish(&mut target).await?;
-                    if game.machine().is_active(touch::state::TRACKING) {
-                        // It forgot the ball it was tracking: lost, said so, searched again.
-                        let lost = BallEvent {
-                            kind: BallEventKind::Lost,
-                            ..BallEvent::default()
-                        };
-                        let o = game.ball_event(&lost, bus_now(&bus));
-                        *lock(&snapshot) = snapshot_of(&game, &mermaid);
-                        out.emit(o).await?;
-                    }
                 }
+                // A ball that moved meanwhile is `ball:moved`, as ever.
                 game.ball_track(&t, bus_now(&bus))
             }
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
+            _ = trackers.changed() => {
+                let tracking = game.machine().is_active(touch::state::TRACKING);
+                if watch.writers(trackers.now(), tracking, clock.now()) {
+                    let why = "the ball tracker left vision/ball (killed? restarting?)";
+                    out.log_line(riding_out_line(why, &game, &watch)).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
             _ = voices.changed() => {
                 let present = voices.any_of(hearing.names());
                 if let Some((said, log)) = hearing.update(present, clock.now()) {
@@ -528,15 +516,24 @@ pub(super) async fn run_touch(
         *lock(&snapshot) = snapshot_of(&game, &mermaid);
         kept.save(game.resume_record(), bus.counters());
         out.emit(outcome).await?;
-        // A tracker that falls silent while the eyes follow the ball (it crashed, its camera
-        // stopped): the ball is lost, said so, and searched for again once it is back.
-        if game.machine().is_active(touch::state::TRACKING) && watch.silent(clock.now()) {
-            out.log_line(LogLine {
-                kind: "anomaly",
-                text: format!(
+        // A tracker that falls silent while the eyes follow the ball, still on the bus (its
+        // camera stalled, it hangs), or a restarted one that does not hold the ball again within
+        // the grace: the ball is lost, said so, and searched for again.
+        let tracking = game.machine().is_active(touch::state::TRACKING);
+        if let Some(due) = watch.due(tracking, clock.now()) {
+            let text = match due {
+                TrackerDue::Silent => format!(
                     "no ball track for {:.1} s: the ball tracker is silent",
                     TRACKER_SILENCE.as_secs_f64()
                 ),
+                TrackerDue::GraceOver => format!(
+                    "the restarted ball tracker did not hold the ball again within {:.1} s: the ball is lost",
+                    watch.grace().as_secs_f64()
+                ),
+            };
+            out.log_line(LogLine {
+                kind: "anomaly",
+                text,
                 distance_m: -1.0,
             })
             .await?;

@@ -54,6 +54,10 @@ pub const BUILT_IN: &[(&str, &str)] = &[
         include_str!("../scenarios/tracker_restart.toml"),
     ),
     (
+        "tracker_restart_touching",
+        include_str!("../scenarios/tracker_restart_touching.toml"),
+    ),
+    (
         "restart_mid_game",
         include_str!("../scenarios/restart_mid_game.toml"),
     ),
