@@ -31,7 +31,8 @@
 //!         │   ├── touching      reached; after courtesy_delay_s -> homing
 //!         │   └── following     the ball moved while reaching: re-reaching
 //!         └── homing            reach cancelled, arm to its rest posture (homing_s)
-//! finished                      final: everything cancelled, robot at rest
+//! finished                      final: everything cancelled, robot at rest; "hello" or
+//!                               "let's play" starts the next visitor's game in `waiting`
 //! ```
 //!
 //! State names on the bus are these paths (`game/playing/arm/reaching/touching`).
@@ -387,6 +388,25 @@ impl TouchGame {
         out
     }
 
+    /// The next visitor: a finished game starts again from `waiting` (the robot plays with one
+    /// person after another, a whole day). The goal ids go on counting, so that no status of the
+    /// last game's goals is taken for the new game's, and the commands acted on are kept.
+    fn next_visitor(&mut self, now: Duration) -> Outcome {
+        let next_id = self.ctx.next_id;
+        self.machine = Machine::new(self.machine.definition().clone());
+        self.ctx = TouchCtx::new(self.ctx.settings.clone());
+        self.ctx.next_id = next_id;
+        self.resume_touch = false;
+        let mut out = Outcome::default();
+        out.outputs.push(Output::Log(LogLine {
+            kind: "state",
+            text: "a new visitor: a new game".into(),
+            distance_m: -1.0,
+        }));
+        out.extend(self.start(now));
+        out
+    }
+
     /// A command from `game/command`. Yes/No are the dialog's business (logged, not acted on).
     pub fn command(&mut self, cmd: &GameCommand, now: Duration) -> Outcome {
         let name = command_event(cmd.command);
@@ -416,6 +436,9 @@ impl TouchGame {
         }));
         if cmd.command.is_answer() {
             return out;
+        }
+        if self.is_finished() && matches!(cmd.command, Command::Greet | Command::Play) {
+            out.extend(self.next_visitor(now));
         }
         let name = if cmd.command != Command::None && !cmd.command.in_game(Game::Touch) {
             "command:other_game"

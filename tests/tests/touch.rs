@@ -226,11 +226,13 @@ fn check_ok(game: &Game) {
     );
 }
 
+/// Two visitors one after the other in one launch: the robot plays the whole game with the
+/// first, and starts a new game when the second greets it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn touch_a_still_ball() {
-    let game = play("still", &[], Duration::from_secs(180)).await;
+async fn touch_a_still_ball_with_two_visitors_in_a_row() {
+    let game = play("still", &["games=2"], Duration::from_secs(300)).await;
     check_ok(&game);
-    game.entered_in_order(&[
+    let one = [
         "playing",
         "searching",
         "tracking",
@@ -238,17 +240,31 @@ async fn touch_a_still_ball() {
         "touching",
         "homing",
         "finished",
-    ])
-    .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
-    assert!(game.said_any("hello"), "{:?}", game.said);
-    assert!(game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
-    let (hand, ball) = *game.touches.first().expect("a touch measured");
-    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+    ];
+    game.entered_in_order(&[one, one].concat())
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    let hellos = game.said.iter().filter(|s| s.contains("hello")).count();
+    assert!(hellos >= 2, "{:?}", game.said);
+    let out = game.output.join("\n");
+    assert!(out.contains("completed (game 2 of 2)"), "{out}");
     assert!(
-        ball <= 0.02,
-        "DR ball {:.1} cm from the truth",
-        ball * 100.0
+        game.arm
+            .iter()
+            .filter(|s| **s == ReachState::Reached)
+            .count()
+            >= 2,
+        "{:?}",
+        game.arm
     );
+    assert!(game.touches.len() >= 2, "{:?}", game.touches);
+    for (hand, ball) in &game.touches {
+        assert!(*hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+        assert!(
+            *ball <= 0.02,
+            "DR ball {:.1} cm from the truth",
+            ball * 100.0
+        );
+    }
 }
 
 /// The whole game with every sound going through a sound server, as it does on the robot: the

@@ -134,6 +134,41 @@ fn the_person_greets_and_asks_to_play_and_the_robot_answers() {
     );
 }
 
+#[test]
+fn after_a_finished_game_the_next_visitor_starts_a_new_one_with_new_goal_ids() {
+    let (mut g, first_goal) = reaching();
+    g.command(&cmd(Command::Quit), t(5.0));
+    assert!(g.is_finished());
+    // Anything but a greeting or "let's play" leaves the game over.
+    g.command(&cmd(Command::TouchBall), t(6.0));
+    assert!(g.is_finished());
+    let o = g.command(&cmd(Command::Greet), t(7.0));
+    assert!(!g.is_finished());
+    assert_eq!(active(&g), [state::WAITING]);
+    assert_eq!(o.said(), [say::GREETING]);
+    assert!(
+        o.outputs
+            .iter()
+            .any(|x| matches!(x, Output::Log(l) if l.text.contains("new visitor"))),
+        "{o:?}"
+    );
+    // The new game plays as the first did; its goals are numbered after the last game's.
+    g.command(&cmd(Command::Play), t(8.0));
+    g.command(&cmd(Command::ScanBall), t(9.0));
+    g.ball_track(&track([0.6, 0.1, 0.78]), t(9.9));
+    g.ball_event(&ball(BallEventKind::Detected), t(10.0));
+    let o = g.command(&cmd(Command::TouchBall), t(11.0));
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1, "{o:?}");
+    assert!(r[0].id > first_goal, "{} after {first_goal}", r[0].id);
+    // "Let's play" after a finished game starts one too, straight into playing.
+    g.command(&cmd(Command::Stop), t(12.0));
+    assert!(g.is_finished());
+    let o = g.command(&cmd(Command::Play), t(13.0));
+    assert_eq!(o.said(), [say::PLAY_ACK]);
+    assert!(g.machine().is_active(state::PLAYING));
+}
+
 /// A status of the neck's goal `id`.
 fn gaze_status(id: u64, state: ReachState) -> ReachStatus {
     ReachStatus {
@@ -707,9 +742,11 @@ fn stop_or_quit_from_any_state_rests_says_goodbye_and_finishes() {
                 "{name}: the tracker's target is cleared when the game played"
             );
             assert!(g.next_deadline().is_none(), "{name}: no timer left");
-            // Nothing happens after the end.
-            let o = g.command(&cmd(Command::Play), t(6.0));
+            // Nothing happens after the end but the next visitor's game (see
+            // after_a_finished_game_the_next_visitor_starts_a_new_one_with_new_goal_ids).
+            let o = g.command(&cmd(Command::TouchBall), t(6.0));
             assert!(o.said().is_empty() && o.steps[0].ignored);
+            assert!(g.is_finished());
         }
     }
 }

@@ -30,6 +30,14 @@ pub struct Config {
     /// Seed of the room noise.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Play the scenario this many times, each time as a new visitor (the ball back at its start,
+    /// what the last visitor saw forgotten); the robot starts a new game when greeted after
+    /// the last one finished. For soak runs: `scripts/bench soak`.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub games: u32,
+    /// Seconds between one visitor's last step and the next one's first.
+    #[arg(long, default_value_t = 2.0)]
+    pub visitor_gap_s: f64,
     /// Check the scenario and print its steps, then exit.
     #[arg(long)]
     pub check: bool,
@@ -89,6 +97,14 @@ impl Component for LokiWorld {
         {
             anyhow::bail!("--ball-rate-hz must be in (0, 1000]");
         }
+        for (flag, v) in [
+            ("--settle-s", config.settle_s),
+            ("--visitor-gap-s", config.visitor_gap_s),
+        ] {
+            if !(v.is_finite() && (0.0..=600.0).contains(&v)) {
+                anyhow::bail!("{flag} must be a number of seconds in [0, 600], not {v}");
+            }
+        }
         let voice_out = match config.voice {
             Voice::Bus => VoiceOut::Bus,
             Voice::Pulse => {
@@ -113,9 +129,11 @@ impl Component for LokiWorld {
             ball_rate_hz: config.ball_rate_hz,
             hand_frame: config.hand_frame,
             camera_frame: config.camera_frame,
-            settle_s: config.settle_s.clamp(0.0, 60.0),
+            settle_s: config.settle_s,
             seed: config.seed,
             voice_out,
+            games: config.games,
+            visitor_gap_s: config.visitor_gap_s,
         };
         Ok((person, config.check))
     }
@@ -142,19 +160,15 @@ impl Component for LokiWorld {
         (cfg, _): (PersonConfig, bool),
         shutdown: Shutdown,
     ) -> anyhow::Result<()> {
-        let name = cfg.scenario.name.clone();
-        let o = person::run(bus, cfg, shutdown).await?;
-        println!(
-            "person: scenario {name:?} completed: {} steps in {:.1} s{}",
-            o.steps,
-            o.duration_s,
-            o.closest_hand_to_ball_m
-                .map(|d| format!("; closest hand to ball surface {:.1} cm", d * 100.0))
-                .unwrap_or_default()
-        );
-        // One machine-readable line for benchmarks: each expectation's delay after its action,
-        // and that action.
-        println!("person: timings {}", serde_json::to_string(&o.timings)?);
+        let games = person::run(bus, cfg, shutdown).await?;
+        if games.len() > 1 {
+            let total: f64 = games.iter().map(|o| o.duration_s).sum();
+            println!(
+                "person: all {} games completed, {:.1} s of play",
+                games.len(),
+                total
+            );
+        }
         Ok(())
     }
 }

@@ -51,6 +51,11 @@ pub struct PersonConfig {
     pub seed: u64,
     /// Where her voice goes.
     pub voice_out: VoiceOut,
+    /// How many times the scenario is played, each time by a new visitor (the ball back where
+    /// the scenario starts it, what the person saw forgotten): a day at an exhibition.
+    pub games: u32,
+    /// Seconds between one visitor's last step and the next one's first.
+    pub visitor_gap_s: f64,
 }
 
 /// Where the person's voice (and the room noise around it) goes.
@@ -96,6 +101,15 @@ const QUEUED_AT_MOST: Duration = Duration::from_secs(15);
 const DEAF_AT_MOST: Duration = Duration::from_secs(60);
 
 impl Seen {
+    /// A new visitor: what the last one saw is forgotten (what the robot is saying now and
+    /// whether it can hear stay: they are the room's, not hers).
+    fn new_visitor(&mut self) {
+        self.said.clear();
+        self.entered.clear();
+        self.reach.clear();
+        self.ball_events.clear();
+    }
+
     /// Whether the robot is speaking, or about to say a sentence it has queued.
     fn robot_has_the_floor(&self, now: Moment) -> bool {
         self.robot_sentences.values().any(|&until| until > now)
@@ -104,6 +118,8 @@ impl Seen {
 
     /// What the person makes of the robot's `speech/speaking` event at `now`.
     fn on_speaking(&mut self, m: &SpeakingEvent, now: Moment) {
+        // Sentences whose end never came (their generator was killed) are over by now.
+        self.robot_sentences.retain(|_, until| *until > now);
         match m.state {
             SpeakingState::Started => {
                 let text = m.text.to_lowercase();
@@ -176,12 +192,13 @@ pub struct Timing {
     pub action: String,
 }
 
-/// Run the scenario to its end (or to the first failed expectation, or shutdown).
+/// Run the scenario to its end `cfg.games` times (or to the first failed expectation, or
+/// shutdown); one outcome per game.
 pub async fn run(
     bus: Bus,
     cfg: PersonConfig,
     mut shutdown: interfaces::node::Shutdown,
-) -> anyhow::Result<Outcome> {
+) -> anyhow::Result<Vec<Outcome>> {
     let sc = cfg.scenario.clone();
     // The scenario's time (the ball's moves, the pauses, the time-outs) is the bus clock's.
     let clock = bus.clock().clone();
@@ -262,128 +279,180 @@ pub async fn run(
     );
     clock.sleep(Duration::from_secs_f64(cfg.settle_s)).await;
 
-    let mut mark = clock.now();
-    let mut action_end = clock.now();
-    let mut last_said: Option<String> = None;
-    // The last action: its step and what it was (for the timings).
-    let mut last_action: (usize, String) = (0, String::new());
-    let mut outcome = Outcome::default();
-    for (i, step) in sc.steps.iter().enumerate() {
-        if shutdown.is_requested() {
-            anyhow::bail!("stopped before step {}", i + 1);
+    let games = cfg.games.max(1);
+    let mut outcomes = Vec::with_capacity(games.min(1000) as usize);
+    for game in 1..=games {
+        if game > 1 {
+            // The next visitor: the ball where the scenario starts it, a short gap, and what the
+            // last one saw forgotten.
+            lock(&seen).new_visitor();
+            lock(&ball).move_to(now_s(), sc.ball.start, 0.0, sc.ball.present, sc.ball.held);
+            tokio::select! {
+                _ = clock.sleep(Duration::from_secs_f64(cfg.visitor_gap_s)) => {}
+                _ = shutdown.wait() => anyhow::bail!("stopped before game {game} of {games}"),
+            }
+            println!("person: game {game} of {games}: a new visitor");
         }
-        let n = i + 1;
-        match step {
-            Step::Say(text) | Step::Interrupt(text) => {
-                mark = clock.now();
-                let over = matches!(step, Step::Interrupt(_));
-                if over && lock(&seen).robot_has_the_floor(mark) {
-                    println!("person: talks over the robot");
-                }
-                say(
-                    &speech_tx,
-                    &voice,
-                    text,
-                    !over,
-                    &seen,
-                    &clock,
-                    &mut shutdown,
-                )
-                .await?;
-                action_end = clock.now();
-                println!("person: says {text:?}");
-                last_said = Some(text.clone());
-                last_action = (n, format!("says {text:?}"));
+        let started = now_s();
+        // A failure names the game when there are several.
+        let of_game = if games > 1 {
+            format!("game {game} of {games}, ")
+        } else {
+            String::new()
+        };
+        let mut mark = clock.now();
+        let mut action_end = clock.now();
+        let mut last_said: Option<String> = None;
+        // The last action: its step and what it was (for the timings).
+        let mut last_action: (usize, String) = (0, String::new());
+        let mut outcome = Outcome::default();
+        for (i, step) in sc.steps.iter().enumerate() {
+            if shutdown.is_requested() {
+                anyhow::bail!("stopped before step {}", i + 1);
             }
-            Step::Ball(m) => {
-                mark = clock.now();
-                let arrival = move_ball(&ball, now_s(), m);
-                action_end = clock.now();
-                println!("person: {}", describe_move(m));
-                last_action = (n, describe_move(m));
-                if m.wait {
-                    clock
-                        .sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0)))
-                        .await;
-                }
-            }
-            Step::PauseS(s) => {
-                tokio::select! {
-                    _ = clock.sleep(Duration::from_secs_f64(*s)) => {}
-                    _ = shutdown.wait() => anyhow::bail!("stopped during step {n}"),
-                }
-            }
-            Step::Expect(e) => {
-                let mut repeats_left = e.repeat;
-                loop {
-                    let started = clock.now();
-                    match expect(
-                        &bus,
-                        &cfg,
-                        &sc,
-                        e,
-                        mark,
+            let n = i + 1;
+            match step {
+                Step::Say(text) | Step::Interrupt(text) => {
+                    mark = clock.now();
+                    let over = matches!(step, Step::Interrupt(_));
+                    if over && lock(&seen).robot_has_the_floor(mark) {
+                        println!("person: talks over the robot");
+                    }
+                    say(
+                        &speech_tx,
+                        &voice,
+                        text,
+                        !over,
                         &seen,
-                        &ball,
-                        &now_s,
+                        &clock,
                         &mut shutdown,
                     )
-                    .await?
-                    {
-                        Ok(figures) => {
-                            if let Some(d) = figures.hand_to_ball_m {
-                                outcome.closest_hand_to_ball_m = Some(
-                                    outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
-                                );
-                            }
-                            let after_s = clock.elapsed(action_end).as_secs_f64();
-                            println!(
-                                "person: sees {} ({:.1} s after the last action, waited {:.1} s){}",
-                                e.describe(),
-                                after_s,
-                                clock.elapsed(started).as_secs_f64(),
-                                figures.describe()
-                            );
-                            outcome.timings.push(Timing {
-                                step: n,
-                                what: e.describe(),
-                                after_s: (after_s * 1e3).round() / 1e3,
-                                action_step: last_action.0,
-                                action: last_action.1.clone(),
-                            });
-                            break;
-                        }
-                        Err(why) => {
-                            if repeats_left > 0
-                                && let Some(text) = &last_said
-                            {
-                                repeats_left -= 1;
+                    .await?;
+                    action_end = clock.now();
+                    println!("person: says {text:?}");
+                    last_said = Some(text.clone());
+                    last_action = (n, format!("says {text:?}"));
+                }
+                Step::Ball(m) => {
+                    mark = clock.now();
+                    let arrival = move_ball(&ball, now_s(), m);
+                    action_end = clock.now();
+                    println!("person: {}", describe_move(m));
+                    last_action = (n, describe_move(m));
+                    if m.wait {
+                        clock
+                            .sleep(Duration::from_secs_f64((arrival - now_s()).max(0.0)))
+                            .await;
+                    }
+                }
+                Step::PauseS(s) => {
+                    tokio::select! {
+                        _ = clock.sleep(Duration::from_secs_f64(*s)) => {}
+                        _ = shutdown.wait() => anyhow::bail!("stopped during step {n}"),
+                    }
+                }
+                Step::Expect(e) => {
+                    let mut repeats_left = e.repeat;
+                    loop {
+                        let started = clock.now();
+                        match expect(
+                            &bus,
+                            &cfg,
+                            &sc,
+                            e,
+                            mark,
+                            &seen,
+                            &ball,
+                            &now_s,
+                            &mut shutdown,
+                        )
+                        .await?
+                        {
+                            Ok(figures) => {
+                                if let Some(d) = figures.hand_to_ball_m {
+                                    outcome.closest_hand_to_ball_m = Some(
+                                        outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
+                                    );
+                                }
+                                let after_s = clock.elapsed(action_end).as_secs_f64();
                                 println!(
-                                    "person: still waiting for {} after {:.0} s; says it again: {text:?}",
+                                    "person: sees {} ({:.1} s after the last action, waited {:.1} s){}",
+                                    e.describe(),
+                                    after_s,
+                                    clock.elapsed(started).as_secs_f64(),
+                                    figures.describe()
+                                );
+                                outcome.timings.push(Timing {
+                                    step: n,
+                                    what: e.describe(),
+                                    after_s: (after_s * 1e3).round() / 1e3,
+                                    action_step: last_action.0,
+                                    action: last_action.1.clone(),
+                                });
+                                break;
+                            }
+                            Err(why) => {
+                                if repeats_left > 0
+                                    && let Some(text) = &last_said
+                                {
+                                    repeats_left -= 1;
+                                    println!(
+                                        "person: still waiting for {} after {:.0} s; says it again: {text:?}",
+                                        e.describe(),
+                                        e.timeout_s
+                                    );
+                                    mark = clock.now();
+                                    say(
+                                        &speech_tx,
+                                        &voice,
+                                        text,
+                                        true,
+                                        &seen,
+                                        &clock,
+                                        &mut shutdown,
+                                    )
+                                    .await?;
+                                    action_end = clock.now();
+                                    last_action = (n, format!("says {text:?}"));
+                                    continue;
+                                }
+                                anyhow::bail!(
+                                    "{of_game}step {n}: expected {} within {:.0} s; {why}",
                                     e.describe(),
                                     e.timeout_s
                                 );
-                                mark = clock.now();
-                                say(&speech_tx, &voice, text, true, &seen, &clock, &mut shutdown)
-                                    .await?;
-                                action_end = clock.now();
-                                last_action = (n, format!("says {text:?}"));
-                                continue;
                             }
-                            anyhow::bail!(
-                                "step {n}: expected {} within {:.0} s; {why}",
-                                e.describe(),
-                                e.timeout_s
-                            );
                         }
                     }
                 }
             }
+            outcome.steps = n;
         }
-        outcome.steps = n;
+        outcome.duration_s = now_s() - started;
+        report(&sc.name, game, games, &outcome)?;
+        outcomes.push(outcome);
     }
-    outcome.duration_s = now_s();
-    Ok(outcome)
+    Ok(outcomes)
+}
+
+/// The person's lines after a game: how it went, and one machine-readable line for benchmarks
+/// (each expectation's delay after its action, and that action).
+fn report(name: &str, game: u32, games: u32, o: &Outcome) -> anyhow::Result<()> {
+    let of = if games > 1 {
+        format!(" (game {game} of {games})")
+    } else {
+        String::new()
+    };
+    println!(
+        "person: scenario {name:?} completed{of}: {} steps in {:.1} s{}",
+        o.steps,
+        o.duration_s,
+        o.closest_hand_to_ball_m
+            .map(|d| format!("; closest hand to ball surface {:.1} cm", d * 100.0))
+            .unwrap_or_default()
+    );
+    println!("person: timings {}", serde_json::to_string(&o.timings)?);
+    Ok(())
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {

@@ -1,0 +1,208 @@
+#!/usr/bin/env python3
+"""The soak's sampler (scripts/bench soak): runs one `robocog launch` that plays the touch game
+GAMES times, and after each game samples every process of the graph (the launcher, which hosts
+the router, and each component): resident memory, open file descriptors, threads, and the
+router's sessions (established TCP connections the launcher holds). Writes one CSV row per
+process per game, prints a table of each resource at game WARM and at the last game, and as its
+last line one JSON object with the figures.
+
+Growth is compared between means over a few games (WINDOW) around game WARM and at the end, so
+that one game's allocator noise is not taken for a leak.
+
+Usage: soak.py LAUNCH_ARGS_FILE CSV GAMES WARM
+"""
+import csv
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+
+WINDOW = 5
+TARGET_PCT = 5.0
+GAME_DONE = re.compile(r'completed \(game (\d+) of (\d+)\)')
+
+
+def descendants(pid):
+    """The pids under `pid` (children, grandchildren, ...), from /proc."""
+    parent = {}
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as f:
+                stat = f.read()
+            ppid = int(stat[stat.rindex(")") + 2:].split()[1])
+            parent.setdefault(ppid, []).append(int(d))
+        except (OSError, ValueError):
+            continue
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        for c in parent.get(p, []):
+            out.append(c)
+            todo.append(c)
+    return out
+
+
+def name_of(pid):
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv0 = f.read().split(b"\0")[0].decode(errors="replace")
+        return os.path.basename(argv0) or "?"
+    except OSError:
+        return None
+
+
+def sample(pid):
+    """(rss_kib, fds, threads, socket inodes) of one process, or None if it is gone."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            status = f.read()
+        rss = int(re.search(r"^VmRSS:\s+(\d+)", status, re.M).group(1))
+        threads = int(re.search(r"^Threads:\s+(\d+)", status, re.M).group(1))
+        inodes = set()
+        fds = 0
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            fds += 1
+            try:
+                link = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue
+            if link.startswith("socket:["):
+                inodes.add(link[8:-1])
+        return rss, fds, threads, inodes
+    except (OSError, AttributeError):
+        return None
+
+
+def established(inodes):
+    """How many of these sockets are established TCP connections."""
+    n = 0
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            with open(table) as f:
+                next(f)
+                for line in f:
+                    cols = line.split()
+                    if cols[3] == "01" and cols[9] in inodes:
+                        n += 1
+        except OSError:
+            continue
+    return n
+
+
+def main():
+    args_file, csv_path, games, warm = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    with open(args_file) as f:
+        launch = [line.rstrip("\n") for line in f if line.strip()]
+    log_path = csv_path[: -len(".csv")] + ".log"
+    log = open(log_path, "w")
+    proc = subprocess.Popen(launch, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            bufsize=1)
+    rows = []  # (game, process, pid, rss_kib, fds, threads)
+    sessions = {}  # game -> router sessions
+    started = time.monotonic()
+    passed = 0
+    for line in proc.stdout:
+        log.write(line)
+        m = GAME_DONE.search(line)
+        if not m:
+            continue
+        game = int(m.group(1))
+        passed = game
+        seen = {}
+        for pid in [proc.pid] + descendants(proc.pid):
+            name = "launcher (router)" if pid == proc.pid else name_of(pid)
+            s = sample(pid)
+            if name is None or s is None:
+                continue
+            k = seen.get(name, 0)
+            seen[name] = k + 1
+            if k:
+                name = f"{name}#{k + 1}"
+            rows.append((game, name, pid, s[0], s[1], s[2]))
+            if pid == proc.pid:
+                sessions[game] = established(s[3])
+        if game == 1 or game % 10 == 0 or game == games:
+            mins = (time.monotonic() - started) / 60
+            print(f"  game {game} of {games} passed ({mins:.1f} min)", file=sys.stderr, flush=True)
+    rc = proc.wait()
+    log.close()
+
+    with open(csv_path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["game", "process", "pid", "rss_kib", "fds", "threads", "router_sessions"])
+        for r in rows:
+            w.writerow(list(r) + [sessions.get(r[0], "")])
+
+    if rc != 0 or passed < games:
+        print(f"the soak stopped after {passed} of {games} games (launcher exit {rc}); "
+              f"its log: {log_path}", file=sys.stderr)
+        with open(log_path) as f:
+            sys.stderr.writelines(f.readlines()[-30:])
+
+    # Means over WINDOW games from game WARM, and over the last WINDOW games played.
+    last = max(passed, 1)
+    warm = max(1, min(warm, last - 1))
+    window = max(1, min(WINDOW, (last - warm + 1) // 2))
+    early = set(range(warm, warm + window))
+    late = set(range(last - window + 1, last + 1))
+    names = sorted({r[1] for r in rows}, key=lambda n: (n != "launcher (router)", n))
+
+    def mean(values):
+        return sum(values) / len(values) if values else float("nan")
+
+    def growth(a, b):
+        return (b - a) / a * 100 if a > 0 else 0.0
+
+    worst = {"rss": (0.0, ""), "fds": (0.0, ""), "threads": (0.0, "")}
+    restarts_total = 0
+    print()
+    print(f"soak: the touch game played {passed} of {games} times in one launch, "
+          f"{os.cpu_count()} cores; means over games {min(early)}-{max(early)} and "
+          f"{min(late)}-{last}")
+    print(f"{'process':28} {'restarts':>8} {'RSS MiB':>16} {'growth':>7} {'fds':>11} "
+          f"{'growth':>7} {'threads':>9} {'growth':>7}")
+    for name in names:
+        mine = [r for r in rows if r[1] == name]
+        restarts = len({r[2] for r in mine}) - 1
+        restarts_total += restarts
+        cols = []
+        for key, idx in (("rss", 3), ("fds", 4), ("threads", 5)):
+            a = mean([r[idx] for r in mine if r[0] in early])
+            b = mean([r[idx] for r in mine if r[0] in late])
+            g = growth(a, b)
+            if restarts == 0 and g > worst[key][0]:
+                worst[key] = (g, name)
+            cols.append((a, b, g))
+        (ra, rb, rg), (fa, fb, fg), (ta, tb, tg) = cols
+        print(f"{name:28} {restarts:8d} {ra / 1024:7.1f} -> {rb / 1024:6.1f} {rg:6.1f}% "
+              f"{fa:4.0f} -> {fb:4.0f} {fg:6.1f}% {ta:3.0f} -> {tb:3.0f} {tg:6.1f}%")
+    s_early = mean([sessions[g] for g in early if g in sessions])
+    s_late = mean([sessions[g] for g in late if g in sessions])
+    print(f"router sessions (established TCP): {s_early:.1f} -> {s_late:.1f}")
+    ok = passed == games and all(w[0] <= TARGET_PCT for w in worst.values()) \
+        and s_late <= s_early and restarts_total == 0
+    print(f"target: every game passes and nothing grows more than {TARGET_PCT:.0f} % "
+          f"between game {warm} and the end: {'met' if ok else 'NOT met'}")
+    print(f"per game and process: {csv_path}")
+    print(json.dumps({
+        "games": games,
+        "games_passed": passed,
+        "minutes": round((time.monotonic() - started) / 60, 1),
+        "rss_growth_max_pct": round(worst["rss"][0], 2),
+        "rss_growth_max_process": worst["rss"][1],
+        "fds_growth_max_pct": round(worst["fds"][0], 2),
+        "threads_growth_max_pct": round(worst["threads"][0], 2),
+        "restarts": restarts_total,
+        "router_sessions_early": round(s_early, 1),
+        "router_sessions_late": round(s_late, 1),
+        "target_met": ok,
+    }))
+    sys.exit(0 if passed == games else 1)
+
+
+if __name__ == "__main__":
+    main()
