@@ -504,7 +504,7 @@ mod tracker_restart {
         tracker.event(BallEventKind::Detected).await;
         // A centimetre off: the ball did not move.
         tracker.track(held_at([P[0] + 0.01, P[1], P[2]])).await;
-        let line = g.log("the ball tracker is back").await;
+        let line = g.log("the ball tracker holds the ball again").await;
         assert!(line.contains("holds the ball"), "{line}");
         g.command(Command::YouTouchedIt).await;
         let active = g.until("command:you_touched_it").await;

@@ -216,10 +216,13 @@ fn riding_out_line(why: &str, game: &TouchGame, watch: &TrackerWatch) -> LogLine
     }
 }
 
-/// Whether the game's eyes need the tracker to have a target.
+/// Whether the game's eyes need the tracker to have a target (out of sight too: the tracker
+/// watches for the ball to come back into view).
 pub(super) fn wants_tracker(game: &TouchGame) -> bool {
     let m = game.machine();
-    m.is_active(touch::state::SEARCHING) || m.is_active(touch::state::TRACKING)
+    m.is_active(touch::state::SEARCHING)
+        || m.is_active(touch::state::TRACKING)
+        || m.is_active(touch::state::OUT_OF_SIGHT)
 }
 
 pub(super) fn ball_target(s: &crate::settings::TouchSettings) -> BallTarget {
@@ -359,6 +362,9 @@ pub(super) async fn run_touch(
     // Who publishes the tracks: a tracker that leaves (killed, crashed) is ridden out.
     let mut trackers =
         interfaces::liveliness::Readers::watch_writers(&bus, &topics::VISION_BALL).await?;
+    // And who publishes the frames: a camera that leaves (killed, crashed) is ridden out too.
+    let mut camera_writers =
+        interfaces::liveliness::Readers::watch_writers(&bus, &topics::VISION_RGBD).await?;
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -398,7 +404,8 @@ pub(super) async fn run_touch(
     let mut watch = TrackerWatch::new(Duration::from_secs_f64(
         settings.touch.tracker_restart_grace_s,
     ));
-    watch.writers(trackers.now(), false, clock.now());
+    watch.writers(Feed::Tracker, trackers.now(), false, clock.now());
+    watch.writers(Feed::Camera, camera_writers.now(), false, clock.now());
     // The voice's components already there (later changes come from `voices.changed()`).
     let _ = hearing.update(voices.any_of(hearing.names()), clock.now());
     loop {
@@ -432,7 +439,7 @@ pub(super) async fn run_touch(
                     }
                     TrackNews::Back => out.log_line(LogLine {
                         kind: "anomaly",
-                        text: "the ball tracker is back and holds the ball: the game carries on".into(),
+                        text: "the ball tracker holds the ball again: the game carries on".into(),
                         distance_m: -1.0,
                     }).await?,
                     TrackNews::Nothing => {}
@@ -453,8 +460,16 @@ pub(super) async fn run_touch(
             s = statuses.recv() => game.reach_status(&s?, bus_now(&bus)),
             _ = trackers.changed() => {
                 let tracking = game.machine().is_active(touch::state::TRACKING);
-                if watch.writers(trackers.now(), tracking, clock.now()) {
+                if watch.writers(Feed::Tracker, trackers.now(), tracking, clock.now()) {
                     let why = "the ball tracker left vision/ball (killed? restarting?)";
+                    out.log_line(riding_out_line(why, &game, &watch)).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
+            _ = camera_writers.changed() => {
+                let tracking = game.machine().is_active(touch::state::TRACKING);
+                if watch.writers(Feed::Camera, camera_writers.now(), tracking, clock.now()) {
+                    let why = "the camera left vision/rgbd (killed? restarting?)";
                     out.log_line(riding_out_line(why, &game, &watch)).await?;
                 }
                 game.advance(bus_now(&bus))

@@ -1,8 +1,8 @@
 //! The touch game's watch over the ball tracker: a tracker that falls silent with its writer
-//! still on the bus (its camera stalled, it hangs) has lost the ball; a tracker that left the
-//! bus or came back as a new process (killed, crashed, restarted by the launcher) is an anomaly
-//! the game rides out for a grace, the ball taken to be where it was, until the new tracker
-//! holds it again. All on the component's clock.
+//! still on the bus (its camera stalled, it hangs) has lost the ball; a tracker or a camera that
+//! left the bus, or a tracker that came back as a new process (killed, crashed, restarted by the
+//! launcher), is an anomaly the game rides out for a grace, the ball taken to be where it was,
+//! until the tracker holds it again. All on the component's clock.
 
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -12,6 +12,14 @@ use interfaces::msg::tracking::{BallTrack, BallTrackState};
 
 /// How long without `vision/ball` before a tracking game calls the ball lost.
 pub(super) const TRACKER_SILENCE: Duration = Duration::from_millis(1500);
+
+/// The feeds whose writers the watch follows: the tracks (`vision/ball`) and the frames they
+/// are made from (`vision/rgbd`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Feed {
+    Tracker = 0,
+    Camera = 1,
+}
 
 /// What a track told the watch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,8 +52,8 @@ pub(super) struct TrackerWatch {
     last_resend: Option<Moment>,
     /// `header.seq` of the last track (per publisher, from 0: lower or equal is a new one).
     last_seq: Option<u64>,
-    /// The components publishing `vision/ball`.
-    writers: BTreeSet<String>,
+    /// The components publishing each [`Feed`].
+    writers: [BTreeSet<String>; 2],
     /// Riding out a restart since then.
     riding_out_since: Option<Moment>,
 }
@@ -58,7 +66,7 @@ impl TrackerWatch {
             reported: false,
             last_resend: None,
             last_seq: None,
-            writers: BTreeSet::new(),
+            writers: [BTreeSet::new(), BTreeSet::new()],
             riding_out_since: None,
         }
     }
@@ -67,16 +75,19 @@ impl TrackerWatch {
         self.grace
     }
 
-    /// The components publishing `vision/ball` now. True when one left while the eyes follow the
-    /// ball (`tracking`) and no ride-out was on: one starts at `now`.
+    /// The components publishing `feed` now. True when one left while the eyes follow the ball
+    /// (`tracking`) and no ride-out was on: one starts at `now`, and ends when the tracker holds
+    /// the ball again.
     pub(super) fn writers(
         &mut self,
+        feed: Feed,
         now_set: BTreeSet<String>,
         tracking: bool,
         now: Moment,
     ) -> bool {
-        let left = self.writers.difference(&now_set).next().is_some();
-        self.writers = now_set;
+        let mine = &mut self.writers[feed as usize];
+        let left = mine.difference(&now_set).next().is_some();
+        *mine = now_set;
         if left && tracking && self.riding_out_since.is_none() {
             self.riding_out_since = Some(now);
             return true;
@@ -198,7 +209,7 @@ mod tests {
     #[test]
     fn a_silent_tracker_whose_writer_stays_has_lost_the_ball_at_the_silence() {
         let mut w = TrackerWatch::new(GRACE);
-        assert!(!w.writers(writers(&["ball_tracker"]), true, at(0)));
+        assert!(!w.writers(Feed::Tracker, writers(&["ball_tracker"]), true, at(0)));
         let t = track(0, BallTrackState::Tracking);
         assert_eq!(w.heard(&t, true, true, at(0)), TrackNews::Nothing);
         assert_eq!(w.deadline(true), Some(at(1_500)));
@@ -216,10 +227,10 @@ mod tests {
     #[test]
     fn a_writer_that_leaves_while_tracking_is_ridden_out_until_the_ball_is_held_again() {
         let mut w = TrackerWatch::new(GRACE);
-        w.writers(writers(&["ball_tracker"]), true, at(0));
+        w.writers(Feed::Tracker, writers(&["ball_tracker"]), true, at(0));
         w.heard(&track(7, BallTrackState::Tracking), true, true, at(0));
         // Killed: its token goes.
-        assert!(w.writers(writers(&[]), true, at(100)));
+        assert!(w.writers(Feed::Tracker, writers(&[]), true, at(100)));
         assert!(w.riding_out());
         assert_eq!(
             w.deadline(true),
@@ -228,7 +239,7 @@ mod tests {
         );
         assert_eq!(w.due(true, at(1_500)), None, "no silence while riding out");
         // Restarted: back on the bus, then a track with no target, its numbers from 0 again.
-        assert!(!w.writers(writers(&["ball_tracker"]), true, at(900)));
+        assert!(!w.writers(Feed::Tracker, writers(&["ball_tracker"]), true, at(900)));
         let waiting = track(0, BallTrackState::Waiting);
         assert_eq!(
             w.heard(&waiting, false, true, at(1_000)),
@@ -250,10 +261,35 @@ mod tests {
     }
 
     #[test]
+    fn a_camera_that_leaves_while_tracking_is_ridden_out_until_the_tracker_holds_the_ball() {
+        let mut w = TrackerWatch::new(GRACE);
+        w.writers(Feed::Tracker, writers(&["ball_tracker"]), true, at(0));
+        w.writers(Feed::Camera, writers(&["rgbd"]), true, at(0));
+        w.heard(&track(7, BallTrackState::Tracking), true, true, at(0));
+        // The camera is killed: the tracker stays, silent without frames.
+        assert!(w.writers(Feed::Camera, writers(&[]), true, at(100)));
+        assert!(w.riding_out());
+        assert_eq!(w.due(true, at(1_500)), None, "no silence while riding out");
+        // Back, and the tracker holds the ball in the new camera's frames.
+        assert!(!w.writers(Feed::Camera, writers(&["rgbd"]), true, at(800)));
+        assert_eq!(
+            w.heard(&track(8, BallTrackState::Tracking), true, true, at(900)),
+            TrackNews::Back
+        );
+        assert!(!w.riding_out());
+        // The tracker's own set is its own: the camera's return is no tracker leaving.
+        assert!(!w.writers(Feed::Tracker, writers(&["ball_tracker"]), true, at(1_000)));
+        // A camera that never comes back: the ball is lost at the grace.
+        assert!(w.writers(Feed::Camera, writers(&[]), true, at(2_000)));
+        assert_eq!(w.due(true, at(7_999)), None);
+        assert_eq!(w.due(true, at(8_000)), Some(TrackerDue::GraceOver));
+    }
+
+    #[test]
     fn a_leave_while_not_tracking_is_not_ridden_out() {
         let mut w = TrackerWatch::new(GRACE);
-        w.writers(writers(&["ball_tracker"]), false, at(0));
-        assert!(!w.writers(writers(&[]), false, at(100)));
+        w.writers(Feed::Tracker, writers(&["ball_tracker"]), false, at(0));
+        assert!(!w.writers(Feed::Tracker, writers(&[]), false, at(100)));
         assert!(!w.riding_out());
     }
 

@@ -125,6 +125,10 @@ fn truth_msg(t: &BallGroundTruth, stamp_ns: i64, frame_seq: u64, frame_id: &str)
 /// Queue depth of the sim's inputs: joint states at 100 Hz or more are drained every frame.
 const INPUT_QUEUE: usize = 64;
 
+/// How long a (re)started simulated camera waits for the world it films (the ball on
+/// `sim/ball`, the head's pose on `body/joint_states`) before it renders without them.
+const WORLD_WAIT: Duration = Duration::from_secs(2);
+
 /// The simulated camera's loop: a frame every `period_s` on the component's clock, until
 /// shutdown (or a scenario's end).
 pub(super) async fn run_sim(
@@ -164,6 +168,13 @@ pub(super) async fn run_sim(
     };
     let mut last_ns = 0i64;
     let mut joint_stamp: Option<i64> = None;
+    // A restarted camera renders nothing before it knows the world it films: a frame without
+    // the ball, or seen from the rest posture, would tell the tracker the ball is gone. A real
+    // camera sees the ball from its first frame; the simulator must not differ by its own
+    // start-up. Past WORLD_WAIT (no simulated person, no joints) it renders what it has.
+    let started = bus.clock().now();
+    let mut ball_known = !config.ball_from_topic;
+    let mut waiting_for_world = true;
     // A frame every period of the component's clock; missed ticks are skipped.
     let mut tick = bus.clock().interval(Duration::from_secs_f64(period_s));
     loop {
@@ -182,6 +193,29 @@ pub(super) async fn run_sim(
             && let Some(ball) = sub.latest()
         {
             w.set_ball(ball);
+            ball_known = true;
+        }
+        if waiting_for_world {
+            let pose_known = head.is_none() || joint_stamp.is_some();
+            if ball_known && pose_known {
+                waiting_for_world = false;
+                tracing::info!("the ball and the head's pose are known: rendering");
+            } else if bus.clock().elapsed(started) >= WORLD_WAIT {
+                waiting_for_world = false;
+                tracing::warn!(
+                    "no {} after {:.0} s: rendering without",
+                    if ball_known {
+                        "joint state"
+                    } else if pose_known {
+                        "ball on sim/ball"
+                    } else {
+                        "ball on sim/ball nor joint state"
+                    },
+                    WORLD_WAIT.as_secs_f64()
+                );
+            } else {
+                continue;
+            }
         }
         let now_ns = bus.clock().now_ns();
         if let Some(t) = joint_stamp
