@@ -75,6 +75,11 @@ pub struct Config {
     /// Dynamixel: speed (rad/s) of the move to the start posture.
     #[arg(long, default_value_t = 0.3)]
     pub home_speed: f64,
+    /// Sim: keep the simulated joints' posture here, and start from it after a restart, as real
+    /// servos hold where they are while their driver restarts (under `robocog launch`: the
+    /// component's state folder, ROBOCOG_STATE_DIR; a new launch starts from `--home`).
+    #[arg(long, env = "ROBOCOG_STATE_DIR")]
+    pub state_dir: Option<PathBuf>,
 }
 
 /// What the component declares for `--describe`.
@@ -134,9 +139,23 @@ fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointD
                 .with_context(|| format!("in {}", p.display()))?,
                 None => SimParams::default(),
             };
+            let kept = config.state_dir.as_deref().and_then(crate::kept::load);
+            if let Some(k) = &kept {
+                tracing::info!(
+                    "the simulated joints take up the posture they had before a restart ({} joints)",
+                    k.len()
+                );
+            }
+            // Each joint where it was kept (within its limits), else at the start posture.
             let start: Option<Vec<f64>> = specs
                 .iter()
-                .map(|s| config.home.position(&s.name, s.lower, s.upper))
+                .map(|s| {
+                    kept.as_ref()
+                        .and_then(|k| k.get(&s.name))
+                        .copied()
+                        .filter(|q| (s.lower..=s.upper).contains(q))
+                        .or_else(|| config.home.position(&s.name, s.lower, s.upper))
+                })
                 .collect();
             Ok(match start {
                 Some(start) => Box::new(SimDriver::new_at(specs, params, &start)?),
@@ -345,6 +364,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         .clock()
         .interval(Duration::from_secs_f64(1.0 / config.rate_hz));
     let mut read_log = RateLimiter::new(Duration::from_secs(1));
+    let mut keeper = match (driver_name, &config.state_dir) {
+        ("sim", Some(dir)) => Some(crate::kept::Keeper::new(dir)),
+        _ => None,
+    };
     loop {
         tokio::select! {
             biased;
@@ -357,6 +380,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 match read {
                     Ok(mut msg) => {
                         msg.driver = driver_name.to_owned();
+                        if let Some(k) = keeper.as_mut() {
+                            k.offer(&msg, bus.clock().now());
+                        }
                         states.publish(&mut msg).await?;
                     }
                     Err(e) => {

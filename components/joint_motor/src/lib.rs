@@ -68,6 +68,7 @@ pub mod driver;
 pub mod dynamixel;
 pub mod error;
 pub mod home;
+pub mod kept;
 pub mod neck;
 pub mod ownership;
 #[cfg(any(test, feature = "servo-sim"))]

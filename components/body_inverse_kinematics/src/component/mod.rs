@@ -38,6 +38,11 @@
 //! `Failed` carries a detail for: an unknown body part, an unknown frame, the DR or `joint_motor`
 //! not answering, no joint states, a refused joint goal (with the joint, limit or owner).
 //!
+//! A peer that is away (the DR or `joint_motor` not answering, no joint states: killed and
+//! restarting, its machine's link down) is ridden out for `--peer-grace-s`: the goal stays, the
+//! arm holds where it is, and the goal goes on once the peer is back. Only past the grace is it
+//! `Failed`.
+//!
 //! Frames and units: metres, radians; quaternions `[x, y, z, w]`; status positions in `world`.
 
 use std::collections::HashMap;
@@ -106,6 +111,10 @@ pub struct Config {
     /// Time-out of each call to dr/transform and body/joint_goal (ms).
     #[arg(long, default_value_t = 250)]
     pub call_timeout_ms: u64,
+    /// How long a goal rides out a peer that is away (the DR or joint_motor not answering, no
+    /// joint states) before it fails (s): a restart by the launcher takes about a second.
+    #[arg(long, default_value_t = 6.0)]
+    pub peer_grace_s: f64,
 }
 
 impl Config {
@@ -117,6 +126,7 @@ impl Config {
             ("--follow-hz", self.follow_hz),
             ("--follow-threshold-m", self.follow_threshold_m),
             ("--speed-fraction", self.speed_fraction),
+            ("--peer-grace-s", self.peer_grace_s),
         ];
         for (flag, v) in positive {
             anyhow::ensure!(v.is_finite() && v > 0.0, "{flag} must be > 0, got {v}");
@@ -271,16 +281,34 @@ struct Active {
     plan: Option<Plan>,
     last_follow: Moment,
     /// Set while the goal waits for fresh joint states (just after start, or joint_motor away):
-    /// it fails after [`STALE_JOINT_STATES_S`].
+    /// it fails after `--peer-grace-s`.
     waiting_since: Option<Moment>,
+    /// Whether the target was looked up in the DR (a goal that arrives while the DR is away is
+    /// looked up once it is back).
+    located: bool,
+    /// Since when a peer has been away (ridden out for `--peer-grace-s`).
+    peer_away_since: Option<Moment>,
 }
 
-/// Why a goal could not run.
-struct Failure(String);
+/// Why a goal could not run. `peer_away`: the DR or joint_motor did not answer (no server, a
+/// time-out), which a restart fixes; the goal rides it out for a while.
+struct Failure {
+    detail: String,
+    peer_away: bool,
+}
+
+impl Failure {
+    fn new(detail: String) -> Self {
+        Failure {
+            detail,
+            peer_away: false,
+        }
+    }
+}
 
 impl From<String> for Failure {
     fn from(s: String) -> Self {
-        Failure(s)
+        Failure::new(s)
     }
 }
 
@@ -297,12 +325,13 @@ struct Ik {
     warn: RateLimiter,
 }
 
-fn call_failure(what: &str, e: &CallError) -> String {
+fn call_failure(what: &str, e: &CallError) -> Failure {
     match e {
-        CallError::NoServer(_) | CallError::Timeout { .. } => {
-            format!("{what}: unreachable ({e})")
-        }
-        other => format!("{what}: {other}"),
+        CallError::NoServer(_) | CallError::Timeout { .. } => Failure {
+            detail: format!("{what}: unreachable ({e})"),
+            peer_away: true,
+        },
+        other => Failure::new(format!("{what}: {other}")),
     }
 }
 
@@ -369,14 +398,13 @@ impl Ik {
             .await
         {
             Ok(rep) => Ok(iso_from_msg(&rep.transform)),
-            Err(CallError::Remote(e)) if e.code == ErrorCode::NotFound => Err(Failure(format!(
-                "unknown frame: the deep representation has no transform {target} <- {source} ({})",
-                e.message
-            ))),
-            Err(e) => Err(Failure(call_failure(
-                "deep_representation (dr/transform)",
-                &e,
-            ))),
+            Err(CallError::Remote(e)) if e.code == ErrorCode::NotFound => {
+                Err(Failure::new(format!(
+                    "unknown frame: the deep representation has no transform {target} <- {source} ({})",
+                    e.message
+                )))
+            }
+            Err(e) => Err(call_failure("deep_representation (dr/transform)", &e)),
         }
     }
 
@@ -389,12 +417,12 @@ impl Ik {
             Ok(rep) if rep.accepted => Ok(()),
             Ok(rep) => {
                 self.bus.counters().incr("joint_goals_refused");
-                Err(Failure(format!(
+                Err(Failure::new(format!(
                     "joint_motor refused the joints: {}",
                     rep.detail
                 )))
             }
-            Err(e) => Err(Failure(call_failure("joint_motor (body/joint_goal)", &e))),
+            Err(e) => Err(call_failure("joint_motor (body/joint_goal)", &e)),
         }
     }
 
@@ -404,8 +432,8 @@ impl Ik {
             release: true,
             ..Default::default()
         };
-        if let Err(Failure(e)) = self.send(&goal).await {
-            tracing::warn!("could not release the joints of {part}: {e}");
+        if let Err(f) = self.send(&goal).await {
+            tracing::warn!("could not release the joints of {part}: {}", f.detail);
         }
     }
 
@@ -462,6 +490,8 @@ impl Ik {
             plan: None,
             last_follow: self.bus.clock().now(),
             waiting_since: None,
+            located: false,
+            peer_away_since: None,
         };
         tracing::info!(
             part = %active.goal.body_part,
@@ -474,9 +504,15 @@ impl Ik {
             "new goal"
         );
         match self.locate(&mut active).await {
-            Ok(()) => {}
-            Err(Failure(detail)) => {
-                self.fail(&active.goal, detail).await;
+            Ok(()) => active.located = true,
+            Err(f) if f.peer_away => {
+                // Looked up by a tick once the DR is back (or failed after the grace).
+                self.peer_away(&mut active, &f.detail);
+                self.parts.insert(active.goal.body_part.clone(), active);
+                return;
+            }
+            Err(f) => {
+                self.fail(&active.goal, f.detail).await;
                 return;
             }
         }

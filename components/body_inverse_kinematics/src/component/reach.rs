@@ -7,7 +7,8 @@ use super::*;
 impl Ik {
     /// Looks the target up in the DR: into the root frame, and into `world` for the status.
     pub(super) async fn locate(&self, a: &mut Active) -> Result<(), Failure> {
-        let in_frame = goal_pose(&a.goal).map_err(|e| Failure(format!("invalid goal: {e}")))?;
+        let in_frame =
+            goal_pose(&a.goal).map_err(|e| Failure::new(format!("invalid goal: {e}")))?;
         let root_t_frame = self.transform(a.part.root, &a.goal.frame).await?;
         let world_t_frame = self.transform("world", &a.goal.frame).await?;
         a.world_t_root = self.transform("world", a.part.root).await?;
@@ -25,12 +26,11 @@ impl Ik {
 
     pub(super) async fn solve(&mut self, a: &mut Active) -> bool {
         if !self.fresh() {
-            let detail = format!(
-                "no joint states on {} for {STALE_JOINT_STATES_S} s: is joint_motor running?",
-                topics::BODY_JOINT_STATES.name()
-            );
-            self.fail(&a.goal, detail).await;
-            return false;
+            // joint_motor away: solved by a tick once joint states are back (or failed after
+            // the grace).
+            a.waiting_since = Some(self.bus.clock().now());
+            a.plan = None;
+            return true;
         }
         let q_now = match chain_q(&a.chain, &self.measured) {
             Ok(q) => q,
@@ -176,9 +176,21 @@ impl Ik {
                 continue;
             };
             let keep = match self.step(&mut a).await {
-                Ok(keep) => keep,
-                Err(Failure(detail)) => {
+                Ok(keep) => {
+                    if keep && let Some(since) = a.peer_away_since.take() {
+                        tracing::info!(
+                            part = %a.goal.body_part,
+                            id = a.goal.id,
+                            "the peers answer again after {:.1} s: the goal goes on",
+                            self.bus.clock().elapsed(since).as_secs_f64()
+                        );
+                    }
+                    keep
+                }
+                Err(f) if f.peer_away && self.within_grace(&mut a, &f.detail) => true,
+                Err(f) => {
                     self.bus.counters().incr("goals_failed");
+                    let detail = f.detail;
                     tracing::warn!(part = %a.goal.body_part, id = a.goal.id, "failed: {detail}");
                     let s = self.active_status(&a, ReachState::Failed, detail);
                     self.publish(s).await;
@@ -193,19 +205,49 @@ impl Ik {
         }
     }
 
+    /// A peer is away (`detail`): the goal holds from now (logged once per absence).
+    pub(super) fn peer_away(&self, a: &mut Active, detail: &str) {
+        if a.peer_away_since.is_none() {
+            a.peer_away_since = Some(self.bus.clock().now());
+            self.bus.counters().incr("peer_away");
+            tracing::warn!(
+                part = %a.goal.body_part,
+                id = a.goal.id,
+                "{detail}: riding it out for up to {:.1} s, the arm holding where it is",
+                self.config.peer_grace_s
+            );
+        }
+    }
+
+    /// Whether a goal whose peer is away (`detail`) is still within the grace.
+    pub(super) fn within_grace(&self, a: &mut Active, detail: &str) -> bool {
+        self.peer_away(a, detail);
+        a.peer_away_since.is_some_and(|since| {
+            self.bus.clock().elapsed(since).as_secs_f64() < self.config.peer_grace_s
+        })
+    }
+
     pub(super) async fn step(&mut self, a: &mut Active) -> Result<bool, Failure> {
         let now = self.bus.clock().now();
+        if !a.located {
+            self.locate(a).await?;
+            a.located = true;
+            return Ok(self.solve(a).await);
+        }
         if let Some(since) = a.waiting_since {
             if self.fresh() {
                 a.waiting_since = None;
                 return Ok(self.solve(a).await);
             }
-            if now.duration_since(since).as_secs_f64() < 2.0 * STALE_JOINT_STATES_S {
+            if now.duration_since(since).as_secs_f64()
+                < self.config.peer_grace_s.max(2.0 * STALE_JOINT_STATES_S)
+            {
                 return Ok(true);
             }
-            return Err(Failure(format!(
-                "no joint states on {}: is joint_motor running?",
-                topics::BODY_JOINT_STATES.name()
+            return Err(Failure::new(format!(
+                "no joint states on {} for {:.1} s: is joint_motor running?",
+                topics::BODY_JOINT_STATES.name(),
+                self.config.peer_grace_s
             )));
         }
         let period = 1.0 / self.config.stream_hz;
@@ -266,7 +308,7 @@ impl Ik {
                             err.map_or("unknown".to_owned(), |d| format!("{d:.3} m"))
                         );
                         if !a.goal.follow {
-                            return Err(Failure(detail));
+                            return Err(Failure::new(detail));
                         }
                         let s = self.active_status(a, ReachState::Failed, detail);
                         self.publish(s).await;
