@@ -124,6 +124,14 @@ impl ConnectArgs {
                 let mut c = zenoh::Config::default();
                 c.insert_json5("scouting/multicast/enabled", "false")
                     .map_err(|e| cfg_err("scouting", e))?;
+                // A lost router is dialled again every second at most (zenoh's own back-off
+                // reaches 4 s): the components are back within about a second of a restarted
+                // router (`robocog launch` restarts its router when it dies).
+                c.insert_json5(
+                    "connect/retry",
+                    r#"{ period_init_ms: 250, period_max_ms: 1000, period_increase_factor: 2.0 }"#,
+                )
+                .map_err(|e| cfg_err("connect/retry", e))?;
                 c
             }
         };

@@ -6,6 +6,11 @@ use crate::bus::BusError;
 /// Open a zenoh router listening on `listen` (`tcp/127.0.0.1:0` for any free port), with
 /// multicast scouting off. Returns the session and the TCP endpoint it actually listens on.
 pub async fn open_router(listen: &str) -> Result<(zenoh::Session, String), BusError> {
+    open_configured(router_config(listen)?, listen).await
+}
+
+/// The configuration of a router listening on `listen`, with multicast scouting off.
+pub fn router_config(listen: &str) -> Result<zenoh::Config, BusError> {
     let mut config = zenoh::Config::default();
     for (key, value) in [
         ("mode", "\"router\"".to_string()),
@@ -19,7 +24,7 @@ pub async fn open_router(listen: &str) -> Result<(zenoh::Session, String), BusEr
             .insert_json5(key, &value)
             .map_err(|e| BusError::Config(format!("router {key}: {e}")))?;
     }
-    open_configured(config, listen).await
+    Ok(config)
 }
 
 /// Open a router with `config` (listening on `listen`, among others). Returns the session and

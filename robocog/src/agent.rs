@@ -25,6 +25,7 @@
 
 use crate::manifest::{Component, Manifest};
 use crate::supervisor::{BoxFuture, describe_status, spawn_process};
+use anyhow::Context;
 use interfaces::bus::{Bus, BusOptions, ServiceError};
 use interfaces::liveliness::{self, Token};
 use interfaces::msg::agent::{
@@ -105,8 +106,19 @@ fn raw_status(status: Option<ExitStatus>) -> i32 {
 /// Run the agent until SIGTERM or Ctrl-C; its components are stopped first.
 pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> {
     let me = crate::machines::machine(&manifest, &opts.machine)?.clone();
-    let (router, endpoint) =
-        crate::machines::open_router(&manifest, &me, &opts.local_router, &opts.namespace).await?;
+    // The machine's router is a process of its own, restarted when it dies: a link's fault
+    // takes it down, not the agent and the components it supervises.
+    let config =
+        crate::machines::router_config(&manifest, &me, &opts.local_router, &opts.namespace)?;
+    let router = crate::router_process::RouterProcess::start(config, &opts.local_router)
+        .await
+        .with_context(|| {
+            format!(
+                "machine {:?}'s router on {} and {}",
+                me.name, opts.local_router, me.router
+            )
+        })?;
+    let endpoint = router.endpoint.clone();
     let others: Vec<String> = manifest
         .machines
         .iter()
@@ -182,7 +194,8 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
     say(&me.name, "ready: waiting for a launch");
 
     // The launcher's presence, for orphaned components.
-    let launcher_tokens = crate::supervisor::component_tokens(&router, &opts.namespace).await?;
+    let launcher_tokens =
+        crate::supervisor::component_tokens(bus.session(), &opts.namespace).await?;
     let (present_tx, mut present_rx) = watch::channel(false);
     {
         let ns = opts.namespace.clone();
@@ -262,7 +275,7 @@ pub async fn run(manifest: Manifest, opts: AgentOptions) -> anyhow::Result<i32> 
     say(&me.name, format!("{reason}: stopping"));
     stop_all(&shared).await;
     drop(bus);
-    drop(router);
+    router.stop().await;
     Ok(0)
 }
 

@@ -17,4 +17,5 @@ pub mod command;
 pub mod machines;
 pub mod manifest;
 pub mod mcap_io;
+pub mod router_process;
 pub mod supervisor;

@@ -110,25 +110,6 @@ fn ros2_domain(manifest: &Manifest) -> anyhow::Result<Option<u32>> {
     Ok(Some(domain))
 }
 
-/// Open machine `me`'s router. Returns the session and its loopback endpoint (for the machine's
-/// components).
-pub async fn open_router(
-    manifest: &Manifest,
-    me: &Machine,
-    local_listen: &str,
-    namespace: &str,
-) -> anyhow::Result<(zenoh::Session, String)> {
-    let config = router_config(manifest, me, local_listen, namespace)?;
-    interfaces::router::open_configured(config, local_listen)
-        .await
-        .with_context(|| {
-            format!(
-                "machine {:?}'s router on {local_listen} and {}",
-                me.name, me.router
-            )
-        })
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]

@@ -35,6 +35,9 @@ enum Verb {
     Replay(command::replay::Args),
     /// Watch a running graph's topics in the rerun viewer (live, or saved to an .rrd file).
     View(command::view::Args),
+    /// One machine's zenoh router as a process of its own (started, and restarted when it
+    /// dies, by `launch` and `agent`).
+    Router(command::router::Args),
 }
 
 fn main() -> ExitCode {
@@ -75,6 +78,7 @@ fn main() -> ExitCode {
             Verb::Record(a) => command::record::execute(a).await,
             Verb::Replay(a) => command::replay::execute(a).await,
             Verb::View(a) => command::view::execute(a).await,
+            Verb::Router(a) => command::router::execute(a).await,
             Verb::Check(_) | Verb::Interface(_) => Ok(0),
         }
     });

@@ -29,6 +29,8 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 
 use crate::agent::{AGENT_PREFIX, LAUNCHER_NAME};
+use crate::router_process::RouterProcess;
+use anyhow::Context;
 use interfaces::bus::Bus;
 use interfaces::msg::agent::{AgentChild, AgentEvent};
 
@@ -199,12 +201,23 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
             );
         }
     };
-    let (router, endpoint) = match &me {
-        None => interfaces::router::open_router(&opts.router).await?,
-        Some(me) => {
-            crate::machines::open_router(&manifest, me, &opts.router, &opts.namespace).await?
-        }
+    let config = match &me {
+        None => interfaces::router::router_config(&opts.router)?,
+        Some(me) => crate::machines::router_config(&manifest, me, &opts.router, &opts.namespace)?,
     };
+    prepare_state_dir(&opts.state_dir, opts.resume)?;
+    // The router is a process of its own, restarted when it dies (a link's fault takes it down,
+    // not the launcher); the launcher joins it as a client, as the components do.
+    let router = RouterProcess::start(config, &opts.router)
+        .await
+        .with_context(|| match &me {
+            None => format!("the router on {}", opts.router),
+            Some(me) => format!(
+                "machine {:?}'s router on {} and {}",
+                me.name, opts.router, me.router
+            ),
+        })?;
+    let endpoint = router.endpoint.clone();
     let connect = interfaces::ConnectArgs::to_router(&endpoint, &opts.namespace);
     say(format!(
         "graph {:?}: router {endpoint}, namespace {}, {} components",
@@ -212,13 +225,23 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
         opts.namespace,
         manifest.components.len()
     ));
-
-    prepare_state_dir(&opts.state_dir, opts.resume)?;
     say(format!(
         "component state in {}{}",
         opts.state_dir.display(),
         if opts.resume { " (resumed)" } else { "" }
     ));
+    // The launcher's own session: it watches the components' tokens (and, over several
+    // machines, calls the agents). Over several machines it announces itself to the agents.
+    let session_bus = match &me {
+        None => {
+            let options = interfaces::bus::BusOptions {
+                announce: false,
+                ..Default::default()
+            };
+            Bus::open_with(&connect, LAUNCHER_NAME, options).await?
+        }
+        Some(_) => Bus::open(&connect, LAUNCHER_NAME).await?,
+    };
 
     let (tx, mut rx) = mpsc::channel::<Event>(1024);
 
@@ -226,7 +249,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     let mut machines = match &me {
         None => None,
         Some(me) => {
-            let bus = Bus::open(&connect, LAUNCHER_NAME).await?;
+            let bus = session_bus.clone();
             let events = bus.subscriber(&interfaces::topics::AGENT_EVENTS).await?;
             let launch_id = format!(
                 "{}-{}-{}",
@@ -264,7 +287,7 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     };
 
     // Components are up when their liveliness token appears.
-    let tokens = component_tokens(&router, &opts.namespace).await?;
+    let tokens = component_tokens(session_bus.session(), &opts.namespace).await?;
     {
         let tx = tx.clone();
         let ns = opts.namespace.clone();
@@ -606,11 +629,12 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
 
     // Said on the bus first, so that no component takes its neighbours' leaving for a failure
     // (the dialog would tell the person it cannot hear her).
-    let stopping = router
+    let session = session_bus.session();
+    let stopping = session
         .liveliness()
         .declare_token(liveliness::stopping_key(
             &opts.namespace,
-            &router.zid().to_string(),
+            &session.zid().to_string(),
         ))
         .await;
     if let Err(e) = &stopping {
@@ -621,7 +645,8 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     stop_all(&manifest, &mut children, machines.as_ref()).await;
     drop(stopping);
     drop(machines);
-    drop(router);
+    drop(session_bus);
+    router.stop().await;
     let code = exit_code.unwrap_or(0);
     if code == 0 {
         if let Err(e) = std::fs::remove_dir_all(&opts.state_dir)

@@ -92,6 +92,19 @@ async fn play_profile(scenario: &str, profile: &str, extra_sets: &[&str], limit:
 /// Kill a component (SIGKILL) once an output line contains a text: `(text, component)`.
 type KillHook<'a> = Option<(&'a str, &'a str)>;
 
+/// A kill hook's component named so is the machine's router process.
+const ROUTER: &str = "router";
+
+/// The pid of the router the launcher started last, from its output.
+fn router_pid(lines: &[String]) -> Option<u32> {
+    lines
+        .iter()
+        .rev()
+        .find_map(|l| l.split("started router (pid ").nth(1))
+        .and_then(|rest| rest.split(')').next())
+        .and_then(|pid| pid.parse().ok())
+}
+
 /// How long a component paused by [`PAUSE_PREFIX`] stays stopped (SIGSTOP, then SIGCONT).
 const PAUSE: Duration = Duration::from_secs(4);
 /// A kill hook's component named `pause:<name>` is stopped for [`PAUSE`] instead of killed.
@@ -185,8 +198,12 @@ async fn play_with(
                 {
                     let paused = component.strip_prefix(PAUSE_PREFIX);
                     let name = paused.unwrap_or(component);
-                    let pid = tokio::task::block_in_place(|| component_pid(&launch, name))
-                        .unwrap_or_else(|| panic!("no pid for {name}"));
+                    let pid = if name == ROUTER {
+                        router_pid(&launch.lines.all())
+                    } else {
+                        tokio::task::block_in_place(|| component_pid(&launch, name))
+                    }
+                    .unwrap_or_else(|| panic!("no pid for {name}"));
                     if paused.is_some() {
                         signal(pid, "STOP");
                         tokio::spawn(async move {
@@ -852,6 +869,46 @@ async fn killed_at(trigger: &str, component: &str) -> Game {
 /// `component` killed while the robot looks at the ball (the scenario's pause).
 async fn killed_while_tracking(component: &str) -> Game {
     killed_at("person: sees gaze within", component).await
+}
+
+/// The machine's router process killed (SIGKILL) while the robot looks at the ball: the
+/// launcher starts it again on the same endpoint, every component (and the launcher) reconnects
+/// and declares itself again, and the game goes on to its end without a repeated command and
+/// without an untrue word.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_router_is_restarted_and_the_game_carries_on() {
+    let game = play_with(
+        "restart_mid_game",
+        &[],
+        Duration::from_secs(200),
+        Some(("person: sees gaze within", ROUTER)),
+    )
+    .await;
+    check_ok(&game);
+    assert!(game.killed.is_some());
+    let out = game.output.join("\n");
+    assert!(
+        out.contains("stopped (killed by signal 9 (SIGKILL)): starting it again"),
+        "no restart of the router:\n{out}"
+    );
+    let starts = game
+        .output
+        .iter()
+        .filter(|l| l.contains("started router (pid "))
+        .count();
+    assert_eq!(starts, 2, "the router started twice:\n{out}");
+    assert!(
+        !out.contains("says it again"),
+        "the person had to repeat herself:\n{out}"
+    );
+    for untrue in [
+        "lost the ball",
+        "out of my sight",
+        "can't reach",
+        "wrong with my arm",
+    ] {
+        assert!(!game.said_any(untrue), "{untrue:?} in {:?}", game.said);
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

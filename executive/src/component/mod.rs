@@ -44,7 +44,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use interfaces::bus::{CallError, ErrorCode, ServiceError};
-use interfaces::msg::body::{JointGoal, JointRefusal};
+use interfaces::msg::body::{JointGoal, JointRefusal, ReachGoal};
 use interfaces::msg::dr::{GetNodeRequest, ProposeReply, ProposeRequest, StructuralChange};
 use interfaces::msg::executive::{Configuration, ConfigurationRequest, GameLog, StateTransition};
 use interfaces::msg::speech::{SayRequest, SpeakingState};

@@ -245,6 +245,9 @@ pub(super) struct TouchOut {
     home: mpsc::Sender<HomeResult>,
     say_id: u64,
     finished: bool,
+    /// The reach goals in force, per body part (sent, not cancelled nor replaced): sent again
+    /// to a reach component that restarted, which lost them.
+    goals: std::collections::BTreeMap<String, ReachGoal>,
 }
 
 impl TouchOut {
@@ -311,8 +314,13 @@ impl TouchOut {
                     self.say.publish(&mut r).await?;
                 }
                 Output::SetBallTarget(mut t) => self.target.publish(&mut t).await?,
-                Output::Reach(mut g) | Output::CancelReach(mut g) => {
-                    self.reach.publish(&mut g).await?
+                Output::Reach(mut g) => {
+                    self.reach.publish(&mut g).await?;
+                    self.goals.insert(g.body_part.clone(), g);
+                }
+                Output::CancelReach(mut g) => {
+                    self.reach.publish(&mut g).await?;
+                    self.goals.remove(&g.body_part);
                 }
                 Output::Home(goal) | Output::Release(goal) => {
                     tokio::spawn(send_home(self.bus.clone(), goal, self.home.clone()));
@@ -365,6 +373,11 @@ pub(super) async fn run_touch(
     // And who publishes the frames: a camera that leaves (killed, crashed) is ridden out too.
     let mut camera_writers =
         interfaces::liveliness::Readers::watch_writers(&bus, &topics::VISION_RGBD).await?;
+    // And who reports on reaches: a reach component that comes back (restarted) lost the goals
+    // it had, and is sent them again.
+    let mut reachers =
+        interfaces::liveliness::Readers::watch_writers(&bus, &topics::BODY_REACH_STATUS).await?;
+    let mut reacher_present = !reachers.now().is_empty();
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -376,6 +389,7 @@ pub(super) async fn run_touch(
         home: home_tx,
         say_id: 0,
         finished: false,
+        goals: Default::default(),
     };
     let _services = serve(&bus, snapshot.clone(), settings.propose.clone()).await?;
     tracing::info!(
@@ -463,6 +477,24 @@ pub(super) async fn run_touch(
                 if watch.writers(Feed::Tracker, trackers.now(), tracking, clock.now()) {
                     let why = "the ball tracker left vision/ball (killed? restarting?)";
                     out.log_line(riding_out_line(why, &game, &watch)).await?;
+                }
+                game.advance(bus_now(&bus))
+            }
+            _ = reachers.changed() => {
+                let present = !reachers.now().is_empty();
+                let back = present && !reacher_present;
+                reacher_present = present;
+                if back && !out.goals.is_empty() {
+                    let parts: Vec<&str> = out.goals.keys().map(String::as_str).collect();
+                    let text = format!(
+                        "the reach component is back (restarted?): sending its goals again ({})",
+                        parts.join(", ")
+                    );
+                    out.log_line(LogLine { kind: "anomaly", text, distance_m: -1.0 }).await?;
+                    let goals: Vec<ReachGoal> = out.goals.values().cloned().collect();
+                    for mut g in goals {
+                        out.reach.publish(&mut g).await?;
+                    }
                 }
                 game.advance(bus_now(&bus))
             }

@@ -17,6 +17,7 @@ pub mod interface;
 pub mod launch;
 pub mod record;
 pub mod replay;
+pub mod router;
 pub mod service;
 pub mod topic;
 pub mod view;
