@@ -29,6 +29,7 @@ const VERSION: u32 = 1;
 pub struct Keeper {
     path: PathBuf,
     last: Option<Moment>,
+    last_written: Option<Moment>,
     failed: bool,
 }
 
@@ -37,6 +38,7 @@ impl Keeper {
         Self {
             path: dir.join(FILE),
             last: None,
+            last_written: None,
             failed: false,
         }
     }
@@ -57,12 +59,22 @@ impl Keeper {
                 .collect(),
         };
         let tmp = self.path.with_extension("json.tmp");
-        let written = serde_json::to_vec(&posture)
-            .map_err(std::io::Error::other)
+        // The state folder is made by its first writer.
+        let folder = match self.path.parent() {
+            Some(dir) if !self.failed && self.last_written.is_none() => {
+                std::fs::create_dir_all(dir)
+            }
+            _ => Ok(()),
+        };
+        let written = folder
+            .and_then(|()| serde_json::to_vec(&posture).map_err(std::io::Error::other))
             .and_then(|bytes| std::fs::write(&tmp, bytes))
             .and_then(|()| std::fs::rename(&tmp, &self.path));
         match written {
-            Ok(()) => self.failed = false,
+            Ok(()) => {
+                self.failed = false;
+                self.last_written = Some(now);
+            }
             Err(e) if !self.failed => {
                 self.failed = true;
                 tracing::warn!(
@@ -154,7 +166,8 @@ mod tests {
 
     #[test]
     fn a_kept_posture_reads_back_and_is_written_at_most_every_200_ms() {
-        let dir = dir("read-back");
+        // The component's state folder does not exist before its first write.
+        let dir = dir("read-back").join("joint_motor");
         assert_eq!(load(&dir), None, "nothing kept yet");
         let mut k = Keeper::new(&dir);
         k.offer(&states(0.3), at(0));
