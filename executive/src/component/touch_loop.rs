@@ -248,20 +248,74 @@ pub(super) struct TouchOut {
     /// The reach goals in force, per body part (sent, not cancelled nor replaced): sent again
     /// to a reach component that restarted, which lost them.
     goals: std::collections::BTreeMap<String, ReachGoal>,
+    /// What the robot was asked to say and has not finished saying (by id, the newest
+    /// [`UNSAID_KEPT`]): said again by a speech generator that restarted, which lost it.
+    unsaid: std::collections::BTreeMap<u64, (Moment, SayRequest)>,
+}
+
+/// How many unfinished sentences are kept for a restarted speech generator, and for how long
+/// (older ones are stale: the game has moved on).
+const UNSAID_KEPT: usize = 8;
+const UNSAID_FOR: Duration = Duration::from_secs(20);
+
+/// Whether the components publishing a topic came back: absent (killed, restarting), then
+/// present again.
+#[derive(Debug)]
+pub(super) struct Comeback {
+    present: bool,
+}
+
+impl Comeback {
+    pub(super) fn new(present: bool) -> Self {
+        Self { present }
+    }
+    /// The publishers are `present` now: true when they were not before.
+    pub(super) fn back(&mut self, present: bool) -> bool {
+        let back = present && !self.present;
+        self.present = present;
+        back
+    }
 }
 
 impl TouchOut {
     /// Says `text` at once (outside the game's machine: what the robot tells about itself).
     async fn say_now(&mut self, text: &str) -> anyhow::Result<()> {
+        self.say_text(text.into(), interfaces::msg::speech::Priority::High)
+            .await
+    }
+
+    async fn say_text(
+        &mut self,
+        text: String,
+        priority: interfaces::msg::speech::Priority,
+    ) -> anyhow::Result<()> {
         self.say_id += 1;
         let mut r = SayRequest {
             id: self.say_id,
-            text: text.into(),
-            priority: interfaces::msg::speech::Priority::High,
+            text,
+            priority,
             ..Default::default()
         };
         self.say.publish(&mut r).await?;
+        self.unsaid.insert(r.id, (self.bus.clock().now(), r));
+        while self.unsaid.len() > UNSAID_KEPT {
+            self.unsaid.pop_first();
+        }
         Ok(())
+    }
+
+    /// What the speech generator says of a sentence: a sentence over (said, cut, dropped,
+    /// failed) is no longer the robot's to say again.
+    fn spoken(&mut self, s: &interfaces::msg::speech::SpeakingEvent) {
+        if matches!(
+            s.state,
+            SpeakingState::Finished
+                | SpeakingState::Interrupted
+                | SpeakingState::Dropped
+                | SpeakingState::Failed
+        ) {
+            self.unsaid.remove(&s.id);
+        }
     }
 
     async fn log_line(&mut self, l: LogLine) -> anyhow::Result<()> {
@@ -303,16 +357,7 @@ impl TouchOut {
         }
         for out in o.outputs {
             match out {
-                Output::Say { text, priority } => {
-                    self.say_id += 1;
-                    let mut r = SayRequest {
-                        id: self.say_id,
-                        text,
-                        priority,
-                        ..Default::default()
-                    };
-                    self.say.publish(&mut r).await?;
-                }
+                Output::Say { text, priority } => self.say_text(text, priority).await?,
                 Output::SetBallTarget(mut t) => self.target.publish(&mut t).await?,
                 Output::Reach(mut g) => {
                     self.reach.publish(&mut g).await?;
@@ -377,7 +422,11 @@ pub(super) async fn run_touch(
     // it had, and is sent them again.
     let mut reachers =
         interfaces::liveliness::Readers::watch_writers(&bus, &topics::BODY_REACH_STATUS).await?;
-    let mut reacher_present = !reachers.now().is_empty();
+    let mut reacher = Comeback::new(!reachers.now().is_empty());
+    // And who speaks: a speech generator that comes back lost what it was saying.
+    let mut speakers =
+        interfaces::liveliness::Readers::watch_writers(&bus, &topics::SPEECH_SPEAKING).await?;
+    let mut speaker = Comeback::new(!speakers.now().is_empty());
     let (home_tx, mut home_rx) = mpsc::channel(16);
     let mut out = TouchOut {
         bus: bus.clone(),
@@ -390,6 +439,7 @@ pub(super) async fn run_touch(
         say_id: 0,
         finished: false,
         goals: Default::default(),
+        unsaid: Default::default(),
     };
     let _services = serve(&bus, snapshot.clone(), settings.propose.clone()).await?;
     tracing::info!(
@@ -481,10 +531,7 @@ pub(super) async fn run_touch(
                 game.advance(bus_now(&bus))
             }
             _ = reachers.changed() => {
-                let present = !reachers.now().is_empty();
-                let back = present && !reacher_present;
-                reacher_present = present;
-                if back && !out.goals.is_empty() {
+                if reacher.back(!reachers.now().is_empty()) && !out.goals.is_empty() {
                     let parts: Vec<&str> = out.goals.keys().map(String::as_str).collect();
                     let text = format!(
                         "the reach component is back (restarted?): sending its goals again ({})",
@@ -494,6 +541,22 @@ pub(super) async fn run_touch(
                     let goals: Vec<ReachGoal> = out.goals.values().cloned().collect();
                     for mut g in goals {
                         out.reach.publish(&mut g).await?;
+                    }
+                }
+                game.advance(bus_now(&bus))
+            }
+            _ = speakers.changed() => {
+                let now = clock.now();
+                out.unsaid.retain(|_, (at, _)| now.duration_since(*at) < UNSAID_FOR);
+                if speaker.back(!speakers.now().is_empty()) && !out.unsaid.is_empty() {
+                    let again: Vec<SayRequest> = out.unsaid.values().map(|(_, r)| r.clone()).collect();
+                    let text = format!(
+                        "the speech generator is back (restarted?): saying again what it did not finish ({})",
+                        again.iter().map(|r| format!("\"{}\"", r.text)).collect::<Vec<_>>().join(", ")
+                    );
+                    out.log_line(LogLine { kind: "anomaly", text, distance_m: -1.0 }).await?;
+                    for mut r in again {
+                        out.say.publish(&mut r).await?;
                     }
                 }
                 game.advance(bus_now(&bus))
@@ -527,6 +590,7 @@ pub(super) async fn run_touch(
             }
             s = speaking.recv() => {
                 let s = s?;
+                out.spoken(&s);
                 match s.state {
                     SpeakingState::Failed | SpeakingState::Dropped | SpeakingState::Interrupted => {
                         out.log_line(LogLine {
