@@ -304,6 +304,55 @@ impl TouchOut {
         Ok(())
     }
 
+    /// The reach component came back (restarted): it lost the goals in force, sent again.
+    async fn send_goals_again(&mut self) -> anyhow::Result<()> {
+        if self.goals.is_empty() {
+            return Ok(());
+        }
+        let parts: Vec<&str> = self.goals.keys().map(String::as_str).collect();
+        let text = format!(
+            "the reach component is back (restarted?): sending its goals again ({})",
+            parts.join(", ")
+        );
+        self.log_line(LogLine {
+            kind: "anomaly",
+            text,
+            distance_m: -1.0,
+        })
+        .await?;
+        let goals: Vec<ReachGoal> = self.goals.values().cloned().collect();
+        for mut g in goals {
+            self.reach.publish(&mut g).await?;
+        }
+        Ok(())
+    }
+
+    /// The speech generator came back (restarted) at `now`: it lost what it was saying, said
+    /// again unless stale.
+    async fn say_unfinished_again(&mut self, now: Moment) -> anyhow::Result<()> {
+        self.unsaid
+            .retain(|_, (at, _)| now.duration_since(*at) < UNSAID_FOR);
+        if self.unsaid.is_empty() {
+            return Ok(());
+        }
+        let again: Vec<SayRequest> = self.unsaid.values().map(|(_, r)| r.clone()).collect();
+        let said: Vec<String> = again.iter().map(|r| format!("\"{}\"", r.text)).collect();
+        let text = format!(
+            "the speech generator is back (restarted?): saying again what it did not finish ({})",
+            said.join(", ")
+        );
+        self.log_line(LogLine {
+            kind: "anomaly",
+            text,
+            distance_m: -1.0,
+        })
+        .await?;
+        for mut r in again {
+            self.say.publish(&mut r).await?;
+        }
+        Ok(())
+    }
+
     /// What the speech generator says of a sentence: a sentence over (said, cut, dropped,
     /// failed) is no longer the robot's to say again.
     fn spoken(&mut self, s: &interfaces::msg::speech::SpeakingEvent) {
@@ -531,33 +580,14 @@ pub(super) async fn run_touch(
                 game.advance(bus_now(&bus))
             }
             _ = reachers.changed() => {
-                if reacher.back(!reachers.now().is_empty()) && !out.goals.is_empty() {
-                    let parts: Vec<&str> = out.goals.keys().map(String::as_str).collect();
-                    let text = format!(
-                        "the reach component is back (restarted?): sending its goals again ({})",
-                        parts.join(", ")
-                    );
-                    out.log_line(LogLine { kind: "anomaly", text, distance_m: -1.0 }).await?;
-                    let goals: Vec<ReachGoal> = out.goals.values().cloned().collect();
-                    for mut g in goals {
-                        out.reach.publish(&mut g).await?;
-                    }
+                if reacher.back(!reachers.now().is_empty()) {
+                    out.send_goals_again().await?;
                 }
                 game.advance(bus_now(&bus))
             }
             _ = speakers.changed() => {
-                let now = clock.now();
-                out.unsaid.retain(|_, (at, _)| now.duration_since(*at) < UNSAID_FOR);
-                if speaker.back(!speakers.now().is_empty()) && !out.unsaid.is_empty() {
-                    let again: Vec<SayRequest> = out.unsaid.values().map(|(_, r)| r.clone()).collect();
-                    let text = format!(
-                        "the speech generator is back (restarted?): saying again what it did not finish ({})",
-                        again.iter().map(|r| format!("\"{}\"", r.text)).collect::<Vec<_>>().join(", ")
-                    );
-                    out.log_line(LogLine { kind: "anomaly", text, distance_m: -1.0 }).await?;
-                    for mut r in again {
-                        out.say.publish(&mut r).await?;
-                    }
+                if speaker.back(!speakers.now().is_empty()) {
+                    out.say_unfinished_again(clock.now()).await?;
                 }
                 game.advance(bus_now(&bus))
             }
