@@ -258,22 +258,50 @@ pub(super) struct TouchOut {
 const UNSAID_KEPT: usize = 8;
 const UNSAID_FOR: Duration = Duration::from_secs(20);
 
-/// Whether the components publishing a topic came back: absent (killed, restarting), then
-/// present again.
+/// Whether the components publishing a topic came back: seen, gone (killed, restarting), then
+/// present again. Their first appearance (a component starting after this one, or the bus's
+/// history arriving late) is no comeback.
 #[derive(Debug)]
 pub(super) struct Comeback {
     present: bool,
+    seen: bool,
 }
 
 impl Comeback {
     pub(super) fn new(present: bool) -> Self {
-        Self { present }
+        Self {
+            present,
+            seen: present,
+        }
     }
-    /// The publishers are `present` now: true when they were not before.
+    /// The publishers are `present` now: true when they had been seen, then gone.
     pub(super) fn back(&mut self, present: bool) -> bool {
-        let back = present && !self.present;
+        let back = present && !self.present && self.seen;
         self.present = present;
+        self.seen |= present;
         back
+    }
+}
+
+#[cfg(test)]
+mod comeback_tests {
+    use super::Comeback;
+
+    #[test]
+    fn only_a_return_after_a_leave_is_a_comeback() {
+        // Not there at start (the history not in yet), then there: no comeback.
+        let mut c = Comeback::new(false);
+        assert!(!c.back(false));
+        assert!(!c.back(true));
+        assert!(!c.back(true));
+        // Gone, then back: a comeback, once.
+        assert!(!c.back(false));
+        assert!(c.back(true));
+        assert!(!c.back(true));
+        // There from the start, gone, back.
+        let mut c = Comeback::new(true);
+        assert!(!c.back(false));
+        assert!(c.back(true));
     }
 }
 
