@@ -24,8 +24,9 @@ TARGET_PCT = 5.0
 GAME_DONE = re.compile(r'completed \(game (\d+) of (\d+)\)')
 
 
-def descendants(pid):
-    """The pids under `pid` (children, grandchildren, ...), from /proc."""
+def children(pid):
+    """The pids whose parent is `pid`, from /proc: the launcher's components and its router
+    (not their own short-lived helpers, such as an espeak-ng run)."""
     parent = {}
     for d in os.listdir("/proc"):
         if not d.isdigit():
@@ -37,20 +38,16 @@ def descendants(pid):
             parent.setdefault(ppid, []).append(int(d))
         except (OSError, ValueError):
             continue
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        for c in parent.get(p, []):
-            out.append(c)
-            todo.append(c)
-    return out
+    return parent.get(pid, [])
 
 
 def name_of(pid):
     try:
         with open(f"/proc/{pid}/cmdline", "rb") as f:
-            argv0 = f.read().split(b"\0")[0].decode(errors="replace")
-        return os.path.basename(argv0) or "?"
+            argv = [a.decode(errors="replace") for a in f.read().split(b"\0")]
+        name = os.path.basename(argv[0]) or "?"
+        # The machine's router is `robocog router`, a child of the launcher.
+        return "router" if name == "robocog" and argv[1:2] == ["router"] else name
     except OSError:
         return None
 
@@ -113,8 +110,9 @@ def main():
         game = int(m.group(1))
         passed = game
         seen = {}
-        for pid in [proc.pid] + descendants(proc.pid):
-            name = "launcher (router)" if pid == proc.pid else name_of(pid)
+        router_seen = False
+        for pid in [proc.pid] + children(proc.pid):
+            name = "launcher" if pid == proc.pid else name_of(pid)
             s = sample(pid)
             if name is None or s is None:
                 continue
@@ -123,8 +121,10 @@ def main():
             if k:
                 name = f"{name}#{k + 1}"
             rows.append((game, name, pid, s[0], s[1], s[2]))
-            if pid == proc.pid:
+            # The router's sessions (a launcher that hosts its router in-process: its own).
+            if name == "router" or (pid == proc.pid and not router_seen):
                 sessions[game] = established(s[3])
+                router_seen |= name == "router"
         if game == 1 or game % 10 == 0 or game == games:
             mins = (time.monotonic() - started) / 60
             print(f"  game {game} of {games} passed ({mins:.1f} min)", file=sys.stderr, flush=True)
@@ -149,7 +149,7 @@ def main():
     window = max(1, min(WINDOW, (last - warm + 1) // 2))
     early = set(range(warm, warm + window))
     late = set(range(last - window + 1, last + 1))
-    names = sorted({r[1] for r in rows}, key=lambda n: (n != "launcher (router)", n))
+    names = sorted({r[1] for r in rows}, key=lambda n: (n not in ("launcher", "router"), n))
 
     def mean(values):
         return sum(values) / len(values) if values else float("nan")
