@@ -144,7 +144,9 @@ def main():
             sys.stderr.writelines(f.readlines()[-30:])
 
     # Means over WINDOW games from game WARM, and over the last WINDOW games played.
-    last = max(passed, 1)
+    # The last game's sample races with the graph's shutdown (the person leaves, the launcher
+    # stops everything): it is left out of the means.
+    last = max(passed - 1, 1) if passed == games else max(passed, 1)
     warm = max(1, min(warm, last - 1))
     window = max(1, min(WINDOW, (last - warm + 1) // 2))
     early = set(range(warm, warm + window))

@@ -3,7 +3,7 @@
 # process, the simulated person) plays the `still` scenario GAMES times, each time as a new
 # visitor. After every game each process is sampled: resident memory, open file descriptors,
 # threads, and the router's sessions. Target: every game passes, and no resource grows more than
-# 5 % between game 20 and the last game (means over 5 games, so one game's allocator noise is not
+# 5 % between game 20 and the last games (means over 5 games, so one game's allocator noise is not
 # a leak); no component restarts.
 # Figures: a table per process, the CSV (game, process, ...) kept in the build folder's
 # bench/soak/, and the JSON line. A game takes about 30 s: 200 games are about 100 minutes.
