@@ -28,7 +28,8 @@
 //!         ├── resting           initial: arm at rest
 //!         ├── reaching          reach goal for the hand at the ball, following it
 //!         │   ├── moving        initial: on the way
-//!         │   ├── touching      reached; after courtesy_delay_s -> homing
+//!         │   ├── touching      reached; courtesy_delay_s after the robot's last word
+//!         │   │                 (a sentence begun or ended enters it again) -> homing
 //!         │   └── following     the ball moved while reaching: re-reaching
 //!         └── homing            reach cancelled, arm to its rest posture (homing_s)
 //! finished                      final: everything cancelled, robot at rest; "hello" or
@@ -43,7 +44,9 @@
 //! `ball:<kind>` (detected, out_of_view, lost, detection_timed_out) from `vision/ball_events`,
 //! `ball:moved` (the tracked centre in `world` moved more than `ball_moved_m` since the last
 //! one), `reach:<state>` (moving, reached, unreachable, cancelled, failed) for the arm's current
-//! goal, `gaze:<state>` for the neck's, and `timer:<label>` (scan, dwell, courtesy, homed).
+//! goal, `gaze:<state>` for the neck's, `speech:<started|ended>` (the robot's own sentences, from
+//! `speech/speaking`, sent only while touching), and `timer:<label>` (scan, dwell, courtesy,
+//! homed).
 //!
 //! # The search
 //!
@@ -60,7 +63,7 @@ use std::time::Duration;
 
 use interfaces::msg::body::{JointGoal, ReachGoal, ReachState, ReachStatus};
 use interfaces::msg::command::{Command, Game, GameCommand};
-use interfaces::msg::speech::Priority;
+use interfaces::msg::speech::{Priority, SpeakingEvent, SpeakingState};
 use interfaces::msg::tracking::{BallEvent, BallEventKind, BallTarget, BallTrack, BallTrackState};
 use interfaces::outbox::Handled;
 
@@ -183,6 +186,16 @@ pub enum Output {
     Log(LogLine),
     /// The machine reached its final state.
     Finish,
+}
+
+/// Whether a progress report of the speech generator begins a sentence (`Some(true)`), ends one
+/// (`Some(false)`: said, cut, failed), or neither (queued, dropped before it began).
+pub fn talking(ev: &SpeakingEvent) -> Option<bool> {
+    match ev.state {
+        SpeakingState::Started => Some(true),
+        SpeakingState::Finished | SpeakingState::Interrupted | SpeakingState::Failed => Some(false),
+        SpeakingState::Queued | SpeakingState::Dropped => None,
+    }
 }
 
 /// The event name of a command.
@@ -457,6 +470,24 @@ impl TouchGame {
                 ),
                 distance_m: -1.0,
             }));
+        }
+        out
+    }
+
+    /// The robot began (`talking`) or ended a sentence (from `speech/speaking`, see
+    /// [`talking`]; a speech generator that left ended its sentence). The arm touching the ball
+    /// waits for the robot's silence: its courtesy delay counts from the robot's last word, and
+    /// does not run out while the robot talks.
+    pub fn speaking(&mut self, talking: bool, now: Duration) -> Outcome {
+        let mut out = self.advance(now);
+        let was = std::mem::replace(&mut self.ctx.robot_talking, talking);
+        if self.machine.is_active(state::TOUCHING) && (talking || was) {
+            let name = if talking {
+                "speech:started"
+            } else {
+                "speech:ended"
+            };
+            out.extend(self.send(name, Input::None, now));
         }
         out
     }

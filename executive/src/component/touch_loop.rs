@@ -617,7 +617,11 @@ pub(super) async fn run_touch(
                 if speaker.back(!speakers.now().is_empty()) {
                     out.say_unfinished_again(clock.now()).await?;
                 }
-                game.advance(bus_now(&bus))
+                if speakers.now().is_empty() {
+                    game.speaking(false, bus_now(&bus))
+                } else {
+                    game.advance(bus_now(&bus))
+                }
             }
             _ = camera_writers.changed() => {
                 let tracking = game.machine().is_active(touch::state::TRACKING);
@@ -659,7 +663,10 @@ pub(super) async fn run_touch(
                     }
                     _ => tracing::debug!("speech {:?}: {}", s.state, s.text),
                 }
-                game.advance(bus_now(&bus))
+                match touch::talking(&s) {
+                    Some(talking) => game.speaking(talking, bus_now(&bus)),
+                    None => game.advance(bus_now(&bus)),
+                }
             }
             h = home_rx.recv() => {
                 if let Some(h) = h {

@@ -30,6 +30,8 @@ pub struct TouchCtx {
     pub(super) ball_camera_distance: Option<f64>,
     /// Since when the tracker has held the ball without a break while out of sight.
     pub(super) held_out_of_sight_since: Option<Duration>,
+    /// Whether the robot is saying a sentence (`speech/speaking`).
+    pub(super) robot_talking: bool,
 }
 
 impl TouchCtx {
@@ -47,6 +49,7 @@ impl TouchCtx {
             ball_reported: None,
             ball_camera_distance: None,
             held_out_of_sight_since: None,
+            robot_talking: false,
         }
     }
 

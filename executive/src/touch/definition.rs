@@ -21,6 +21,10 @@ fn seen(c: &TouchCtx, _: &Event<Input>) -> bool {
     c.ball_seen
 }
 
+fn silent(c: &TouchCtx, _: &Event<Input>) -> bool {
+    !c.robot_talking
+}
+
 /// The touch-the-ball machine for `settings` (see the module docs for the states).
 pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     use state::*;
@@ -47,7 +51,7 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     b.atomic(RESTING);
     b.compound(REACHING, "moving").entry(Act::ReachBall);
     b.atomic(MOVING);
-    b.atomic(TOUCHING).entry(normal(say::TOUCHING));
+    b.atomic(TOUCHING);
     b.atomic(FOLLOWING).entry(normal(say::FOLLOWING));
     b.atomic(HOMING).entry(Act::HomeArm);
     b.final_state(FINISHED);
@@ -143,8 +147,18 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
         .guard("ball seen", seen)
         .to(REACHING)
         .action(normal(say::GOING_TO_TOUCH));
-    b.on(MOVING, "reach:reached").to(TOUCHING);
-    b.on(FOLLOWING, "reach:reached").to(TOUCHING);
+    b.on(MOVING, "reach:reached")
+        .to(TOUCHING)
+        .action(normal(say::TOUCHING));
+    b.on(FOLLOWING, "reach:reached")
+        .to(TOUCHING)
+        .action(normal(say::TOUCHING));
+    // The courtesy delay counts from the robot's last word: a person waits for the robot to
+    // finish talking before she answers. The timer does not fire while the robot talks, and a
+    // sentence begun or ended while touching enters the state again (its timer starts again).
+    for ev in ["speech:started", "speech:ended"] {
+        b.on(TOUCHING, ev).to(TOUCHING);
+    }
     b.on(MOVING, "ball:moved").to(FOLLOWING);
     b.on(TOUCHING, "ball:moved").to(FOLLOWING);
     b.after(
@@ -152,6 +166,7 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
         Duration::from_secs_f64(settings.courtesy_delay_s),
         "courtesy",
     )
+    .guard("the robot is silent", silent)
     .to(HOMING)
     .action(normal(say::COURTESY));
     b.on(REACHING, "command:you_touched_it")

@@ -477,6 +477,52 @@ fn the_courtesy_delay_sends_the_arm_home_exactly_after_the_delay() {
 }
 
 #[test]
+fn the_courtesy_delay_counts_from_the_robots_last_word() {
+    let (mut g, id) = reaching();
+    g.reach_status(&status(id, ReachState::Reached), t(10.0));
+    // Another component talks (the dialog: "I can't hear you for a moment") from 13 s to 19 s:
+    // the person, who waits for the robot to finish, has not had her 5 s yet.
+    assert!(g.speaking(true, t(13.0)).said().is_empty());
+    assert!(g.advance(t(18.5)).said().is_empty());
+    let o = g.speaking(false, t(19.0));
+    assert!(
+        o.said().is_empty(),
+        "re-entering touching says nothing: {o:?}"
+    );
+    assert_eq!(active(&g), [state::TOUCHING, state::TRACKING]);
+    assert_eq!(g.next_deadline(), Some(t(24.0)));
+    // Her answer in that time is taken.
+    let o = g.command(&cmd(Command::YouTouchedIt), t(22.0));
+    assert_eq!(o.said(), [say::THANKS]);
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+    // Sentences while not touching change nothing.
+    let before = g.next_deadline();
+    let o = g.speaking(false, t(22.5));
+    assert!(o.steps.is_empty() && o.outputs.is_empty(), "{o:?}");
+    assert_eq!(g.next_deadline(), before);
+}
+
+#[test]
+fn the_courtesy_delay_still_runs_out_after_a_silent_while() {
+    let (mut g, id) = reaching();
+    g.reach_status(&status(id, ReachState::Reached), t(10.0));
+    // "I'm touching the ball." from 10 s to 11.5 s; then the person says nothing.
+    g.speaking(true, t(10.0));
+    g.speaking(false, t(11.5));
+    assert!(g.advance(t(16.4)).said().is_empty());
+    assert_eq!(g.advance(t(16.5)).said(), [say::COURTESY]);
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
+    // The talk's progress reports map onto talking and silent.
+    let ev = |state| SpeakingEvent {
+        state,
+        ..SpeakingEvent::default()
+    };
+    assert_eq!(talking(&ev(SpeakingState::Started)), Some(true));
+    assert_eq!(talking(&ev(SpeakingState::Interrupted)), Some(false));
+    assert_eq!(talking(&ev(SpeakingState::Dropped)), None);
+}
+
+#[test]
 fn a_configured_courtesy_delay_is_used() {
     let s = TouchSettings {
         courtesy_delay_s: 2.0,
