@@ -531,6 +531,11 @@ impl CoachGame {
             return self.reroute(if pen { "penalty:on" } else { "penalty:off" }, now);
         }
         if was_state != Some(g.state) {
+            if g.state == GameState::FINISHED {
+                // The attack is over: what interrupted its last command resumes nothing in
+                // the next one.
+                self.ctx.interrupted = None;
+            }
             let name = match g.state {
                 0 => "game:initial",
                 1 => "game:ready",

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use interfaces::msg::nao::{CoachStatus, NaoBody, NaoCommand};
+use interfaces::msg::nao::{CoachStatus, GameState, NaoBody, NaoCommand};
 use interfaces::msg::speech::Priority;
 
 use super::{Act, Input, LogLine, Output, RESEND_WINDOW_S, say};
@@ -177,8 +177,17 @@ impl Context<Act, Input> for CoachCtx {
                 }
             }
             Act::Interrupted(why) => {
-                // The first cause is what the coach hears when the robot carries on.
-                self.interrupted.get_or_insert(why);
+                // The first cause is what the coach hears when the robot carries on. Only a
+                // game under way is interrupted: a fall after FINISHED resumes nothing in the
+                // next attack.
+                if self
+                    .situation
+                    .game
+                    .as_ref()
+                    .is_some_and(|g| g.state == GameState::PLAYING)
+                {
+                    self.interrupted.get_or_insert(why);
+                }
             }
             Act::Resume => {
                 let interrupted = self.interrupted.take();

@@ -711,3 +711,33 @@ fn a_command_published_just_before_the_bridge_went_is_sent_to_the_next_one() {
     g.bridge(false, t(12.0));
     assert!(g.bridge(true, t(13.0)).commands().is_empty());
 }
+
+#[test]
+fn an_attack_that_ends_with_the_robot_down_resumes_nothing_in_the_next() {
+    let mut g = playing();
+    g.request(&go_to(-3000.0, 2000.0), t(1.0));
+    g.world_model(&world(true, true), t(2.0));
+    // The attack ends while the robot is down; it gets up in FINISHED, falls again in INITIAL.
+    g.game_state(&game(GameState::FINISHED), t(3.0));
+    g.world_model(&world(false, true), t(4.0));
+    g.game_state(&game(GameState::INITIAL), t(10.0));
+    g.world_model(&world(true, true), t(11.0));
+    g.world_model(&world(false, true), t(12.0));
+    // The next attack: nothing of the last one is sent again, nothing is said of it.
+    let o = g.game_state(&game(GameState::PLAYING), t(20.0));
+    assert_eq!(o.steps.last().unwrap().active, [state::PLAYING]);
+    assert!(o.commands().is_empty(), "{:?}", o.commands());
+    assert!(
+        o.said().iter().all(|s| !s.contains("Resuming")),
+        "{:?}",
+        o.said()
+    );
+    // Within an attack, a fall still resumes the command (the interruption is the game's).
+    g.request(&go_to(-2000.0, 1000.0), t(21.0));
+    g.world_model(&world(true, true), t(22.0));
+    let o = g.world_model(&world(false, true), t(30.0));
+    assert_eq!(
+        o.said(),
+        ["I am up again. Resuming. Going to the position."]
+    );
+}
