@@ -34,6 +34,10 @@ pub struct NetConfig {
     pub command_port: u16,
     /// Simulated seconds per real second.
     pub time_scale: f64,
+    /// Attacks to play one after another (at least 1), and the simulated seconds in FINISHED
+    /// between two.
+    pub attacks: u32,
+    pub between_attacks_s: f64,
 }
 
 fn pose_of(field: &SplField, id: RobotId) -> FieldPose {
@@ -45,6 +49,43 @@ fn pose_of(field: &SplField, id: RobotId) -> FieldPose {
             theta_rad: r.theta as f32,
         })
         .unwrap_or_default()
+}
+
+/// Attacks one after another: the one under way, how many, and when it finished.
+struct Attacks {
+    played: u32,
+    of: u32,
+    between_s: f64,
+    finished_at: Option<f64>,
+}
+
+impl Attacks {
+    /// After a step: a finished attack is said once, and the next one begins `between_s` later.
+    fn after_step(&mut self, field: &mut SplField) {
+        if field.game_state() != spl::GameState::Finished {
+            return;
+        }
+        let now = field.time_s();
+        let at = *self.finished_at.get_or_insert_with(|| {
+            tracing::info!(
+                "attack {} of {} finished: score {}",
+                self.played,
+                self.of,
+                field.score()
+            );
+            now
+        });
+        if self.played < self.of && now - at >= self.between_s {
+            self.played += 1;
+            self.finished_at = None;
+            field.next_attack();
+            tracing::info!(
+                "attack {} of {} begins: robots on their ready poses, INITIAL",
+                self.played,
+                self.of
+            );
+        }
+    }
 }
 
 /// Run the field until shutdown.
@@ -80,7 +121,12 @@ pub async fn run(
     let mut tick = bus.clock().interval(step);
     let mut buf = vec![0u8; 1024];
     let (mut last_cmd, mut commands, mut passes) = (Vec::new(), 0u64, 0u32);
-    let mut events_seen = 0usize;
+    let mut attacks = Attacks {
+        played: 1,
+        of: net.attacks.max(1),
+        between_s: net.between_attacks_s,
+        finished_at: None,
+    };
     let mut since_truth = Duration::ZERO;
     use tokio::signal::unix::{SignalKind, signal};
     let mut knock_controlled = signal(SignalKind::user_defined1())?;
@@ -124,13 +170,13 @@ pub async fn run(
                         tracing::debug!("send failed: {e}");
                     }
                 }
-                for (t, e) in &field.events()[events_seen..] {
+                for (t, e) in field.take_events() {
                     if matches!(e, SimEvent::PassCompleted { .. }) {
                         passes += 1;
                     }
                     tracing::info!("t={t:.1}s {e:?}");
                 }
-                events_seen = field.events().len();
+                attacks.after_step(&mut field);
                 since_truth += step;
                 if since_truth >= Duration::from_millis(100) {
                     since_truth = Duration::ZERO;
@@ -205,6 +251,13 @@ pub struct Flags {
     /// Length of that penalty (simulated s).
     #[arg(long, default_value_t = 45.0)]
     pub penalty_s: f64,
+    /// Attacks to play one after another (a challenge's attempts, or a day of them): after
+    /// each FINISHED, the field is set up again and the GameController starts from INITIAL.
+    #[arg(long, default_value_t = 1)]
+    pub attacks: u32,
+    /// Simulated seconds in FINISHED before the next attack.
+    #[arg(long, default_value_t = 5.0)]
+    pub between_attacks_s: f64,
 }
 
 /// The `spl_field` component.
@@ -244,6 +297,16 @@ impl interfaces::node::Component for SplFieldComponent {
         if let Some(f) = config.falls_per_min {
             sim.falls_per_min = f.max(0.0);
         }
+        anyhow::ensure!(
+            config.attacks >= 1,
+            "--attacks must be at least 1 (one attack is the challenge's), got {}",
+            config.attacks
+        );
+        anyhow::ensure!(
+            config.between_attacks_s.is_finite() && config.between_attacks_s >= 0.0,
+            "--between-attacks-s must be a number of seconds (0 or more), got {}",
+            config.between_attacks_s
+        );
         sim.penalty_at_s = config.penalty_at_s.filter(|s| s.is_finite() && *s >= 0.0);
         sim.penalty_s = config.penalty_s.max(0.0);
         if config.passive_opponents {
@@ -260,6 +323,8 @@ impl interfaces::node::Component for SplFieldComponent {
             teammate: config.teammate,
             command_port: config.command_port,
             time_scale: config.time_scale.max(0.01),
+            attacks: config.attacks,
+            between_attacks_s: config.between_attacks_s,
         };
         Ok((net, sim))
     }

@@ -752,3 +752,55 @@ fn a_scripted_penalty_is_reported_by_the_gamecontroller_and_stops_the_robot() {
         .collect();
     assert_eq!(kinds, [2.0, 7.0]);
 }
+
+#[test]
+fn the_next_attack_sets_the_field_up_again_and_time_goes_on() {
+    let mut f = playing(false);
+    send(
+        &mut f,
+        Some(NaoBody::GoToPosition),
+        None,
+        Some((1000.0, 1000.0)),
+    );
+    f.knock_over(RobotId::AUTONOMOUS);
+    f.penalise(RobotId::CONTROLLED, 60.0);
+    f.place_ball(V2::new(2000.0, 500.0), V2::new(100.0, 0.0));
+    f.set_game_state(GameState::Finished);
+    f.step(1.0);
+    let (t, ready) = (f.time_s(), SplField::new(SimConfig::default()));
+    f.next_attack();
+    assert_eq!(f.game_state(), GameState::Initial);
+    assert_eq!(f.time_s(), t, "the field's time goes on");
+    assert_eq!((f.ball, f.ball_vel), (V2::ZERO, V2::ZERO));
+    assert_eq!(f.score(), 0);
+    assert_eq!(f.controlled().body, None, "no command from the last attack");
+    for id in RobotId::ALL {
+        let (r, r0) = (f.robot(id).unwrap(), ready.robot(id).unwrap());
+        assert_eq!(
+            (r.pos, r.theta),
+            (r0.pos, r0.theta),
+            "{id:?} on its ready pose"
+        );
+        assert!(
+            !r.is_fallen() && !r.is_penalised(),
+            "{id:?} stands, unpenalised"
+        );
+    }
+    // The timeline runs again: READY, SET, then PLAYING.
+    assert!(run_until(&mut f, 30.0, |f| f.game_state() == GameState::Playing));
+    // The events of both attacks are handed out once.
+    let events = f.take_events();
+    assert!(events.iter().any(|(_, e)| matches!(
+        e,
+        SimEvent::StateChanged {
+            state: GameState::Finished
+        }
+    )));
+    assert!(events.iter().any(|(_, e)| matches!(
+        e,
+        SimEvent::StateChanged {
+            state: GameState::Playing
+        }
+    )));
+    assert!(f.take_events().is_empty());
+}

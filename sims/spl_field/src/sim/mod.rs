@@ -165,6 +165,20 @@ pub struct ControlledState {
     pub ball_requested: bool,
 }
 
+impl Default for ControlledState {
+    /// A robot that was never commanded: it stands, looking at the ball.
+    fn default() -> Self {
+        Self {
+            body: None,
+            target: V2::ZERO,
+            head: NaoHead::LookAtTheBall,
+            strategy: NaoStrategy::Default,
+            done: false,
+            ball_requested: false,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy)]
 struct PendingPass {
     from: RobotId,
@@ -230,14 +244,7 @@ impl SplField {
             ball: V2::ZERO,
             ball_vel: V2::ZERO,
             robots,
-            controlled: ControlledState {
-                body: None,
-                target: V2::ZERO,
-                head: NaoHead::LookAtTheBall,
-                strategy: NaoStrategy::Default,
-                done: false,
-                ball_requested: false,
-            },
+            controlled: ControlledState::default(),
             pending_pass: None,
             last_toucher: None,
             last_kicker: None,
@@ -327,6 +334,35 @@ impl SplField {
             self.events
                 .push((self.time_s, SimEvent::Fell { robot: id }));
         }
+    }
+
+    /// The next attack: robots on their ready poses (standing, no penalty), the ball on the
+    /// centre spot, the score at zero, the controlled robot without a command, and the
+    /// GameController in INITIAL again (a challenge's attempts one after another). Time, the
+    /// robots' clocks, the packet numbers and the random draws go on.
+    pub fn next_attack(&mut self) {
+        for r in &mut self.robots {
+            let (p, th) = ready_pose(r.id);
+            let boot = r.boot_offset_ms;
+            *r = SimRobot::new(r.id, p, th, boot);
+        }
+        self.ball = V2::ZERO;
+        self.ball_vel = V2::ZERO;
+        self.controlled = ControlledState::default();
+        self.pending_pass = None;
+        self.last_toucher = None;
+        self.last_kicker = None;
+        (self.score, self.opponent_score) = (0, 0);
+        self.message_budget = 1200;
+        self.messages_owed = 0.0;
+        self.whistle_at_s = None;
+        self.scripted_penalty_done = false;
+        self.change_state(GameState::Initial);
+    }
+
+    /// The events since the last call (the process logs them; a long run keeps none).
+    pub fn take_events(&mut self) -> Vec<(f64, SimEvent)> {
+        std::mem::take(&mut self.events)
     }
 
     /// Penalise a robot now for `secs` (scripted scenarios; see [`SimConfig::penalty_at_s`]).
