@@ -283,6 +283,50 @@ fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off()
             l.contains("talker is up") && !l.contains(&format!("pid {pid},"))
         });
 
+    // The other machine's router dies (SIGKILL): its agent starts it again on the same
+    // endpoints, the talker rejoins it and the two routers link again; the listener hears the
+    // talker on, and nothing is restarted for it.
+    let router_line =
+        speech
+            .lines
+            .wait_for("the speech machine's router", Duration::from_secs(1), |l| {
+                l.contains("started router (pid ")
+            });
+    let router_pid: u32 = router_line
+        .split("started router (pid ")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the router's pid");
+    let before = last_hello(&robot);
+    robocog_tests::signal(router_pid, "KILL");
+    speech.lines.wait_until(
+        "the router started again",
+        Duration::from_secs(20),
+        |lines| {
+            lines
+                .iter()
+                .filter(|l| l.contains("started router (pid "))
+                .count()
+                == 2
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while last_hello(&robot) <= before + 5 {
+        assert!(
+            Instant::now() < deadline,
+            "the listener did not hear the talker after the router's restart (last hello {} \
+             before, {} now):\n{}\n\nspeech:\n{}",
+            before,
+            last_hello(&robot),
+            robot.lines.all().join("\n"),
+            speech.lines.all().join("\n")
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(speech.lines.count(|l| l.contains("started talker")), 2);
+    assert!(robocog_tests::alive(speech.child.id()), "the agent went on");
+
     // Stopping the launch stops the other machine's components too; the agent stays for the
     // next launch.
     robot.sigterm();
