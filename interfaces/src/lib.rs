@@ -41,7 +41,10 @@ pub mod topic;
 pub mod topics;
 
 pub use args::ConnectArgs;
-pub use bus::{Bus, BusError, CallError, ErrorCode, Publisher, Received, ServiceError, Subscriber};
+pub use bus::{
+    Bus, BusError, CallError, ErrorCode, Publisher, Received, RecentPublisher, ServiceError,
+    Subscriber,
+};
 pub use clock::{Clock, Moment};
 pub use header::Header;
 pub use msg::{Borrowable, Message};

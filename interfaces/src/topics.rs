@@ -98,6 +98,9 @@ pub const SIM_FIELD_TRUTH: Topic<crate::msg::nao::FieldTruth> = Topic::new("sim/
 // voice
 /// Microphone audio in (16 kHz mono s16le for the recognizer; other formats are dropped, counted).
 pub const AUDIO_IN: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/in");
+/// How much of `audio/in` its publishers keep ([`crate::Bus::recent_publisher`]) for a recognizer
+/// that restarts: the words said while it was down are heard when it is back.
+pub const AUDIO_IN_KEPT: std::time::Duration = std::time::Duration::from_secs(8);
 /// Synthesized speech out, as the speech generator plays it.
 pub const AUDIO_OUT: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/out");
 /// Every utterance the recognizer decoded, with its confidence and command.

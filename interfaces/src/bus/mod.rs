@@ -47,6 +47,7 @@ use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProvid
 
 mod fair;
 mod publisher;
+mod recent;
 mod service;
 mod subscriber;
 #[cfg(test)]
@@ -58,6 +59,7 @@ mod tests;
 
 use publisher::Payload;
 pub use publisher::{Publisher, Received};
+pub use recent::RecentPublisher;
 pub(crate) use service::WireReply;
 pub use service::{CallError, ErrorCode, PER_CALLER_QUEUE, ServiceError, ServiceHandle};
 pub use subscriber::{ClockFollower, Subscriber};

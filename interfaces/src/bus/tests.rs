@@ -472,3 +472,53 @@ async fn a_request_whose_caller_gave_up_is_dropped_not_answered_late() {
         "the hasty request was handled after its caller gave up"
     );
 }
+
+/// A reader that joins late asks for what was published while it was away: the samples after
+/// its mark, oldest first, only those within the publisher's window; none when nothing keeps
+/// them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_late_reader_catches_up_on_the_recent_samples_and_no_older() {
+    use crate::msg::speech::AudioChunk;
+    let (_router, a, b) = two_buses().await;
+    let t = Duration::from_secs(5);
+    assert!(
+        b.recent(&topics::AUDIO_IN, 0, Duration::from_millis(300))
+            .await
+            .unwrap()
+            .is_empty()
+    );
+    let mic = a
+        .recent_publisher(&topics::AUDIO_IN, Duration::from_millis(250))
+        .await
+        .unwrap();
+    // Chunks stamped 100 ms apart (their stamps are the publisher's clock, here set).
+    for i in 1..=6i64 {
+        let mut c = AudioChunk::mono(16_000, &[i as i16; 160]);
+        c.header.stamp_ns = i * 100_000_000;
+        mic.publish(&mut c).await.unwrap();
+    }
+    // The window keeps 250 ms behind the newest: chunks 4, 5 and 6 (3 is 300 ms behind).
+    let all = b.recent(&topics::AUDIO_IN, 0, t).await.unwrap();
+    let stamps: Vec<i64> = all
+        .iter()
+        .map(|c| c.header.stamp_ns / 100_000_000)
+        .collect();
+    assert_eq!(stamps, [4, 5, 6]);
+    assert_eq!(
+        all[2].samples().unwrap(),
+        vec![6i16; 160],
+        "the same samples"
+    );
+    // After a mark: only what is newer.
+    let after = b.recent(&topics::AUDIO_IN, 500_000_000, t).await.unwrap();
+    assert_eq!(after.len(), 1);
+    assert_eq!(after[0].header.stamp_ns, 600_000_000);
+    // A publisher gone keeps nothing for anyone.
+    drop(mic);
+    assert!(
+        b.recent(&topics::AUDIO_IN, 0, Duration::from_millis(300))
+            .await
+            .unwrap()
+            .is_empty()
+    );
+}
