@@ -936,6 +936,30 @@ async fn killed_as_the_arm_reaches(component: &str, shown: &[&str]) {
     );
 }
 
+/// The recognizer killed as the person says "let's play": the restarted one catches up on the
+/// microphone's kept audio (`audio/in` keeps its last seconds), and she is answered without
+/// saying it again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recognizer_killed_as_the_person_speaks_hears_her_when_it_is_back() {
+    let game = killed_at("person: says \"let's play\"", "speech_recognition").await;
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("speech_recognition |") && l.contains("restarted: catching up")),
+        "the restarted recognizer did not catch up:\n{}",
+        game.output.join("\n")
+    );
+    assert_eq!(
+        game.said
+            .iter()
+            .filter(|s| s.starts_with("great, let's play"))
+            .count(),
+        1,
+        "answered once: {:?}",
+        game.said
+    );
+}
+
 /// The reach rides the world model's restart out (it asks for the ball's place again once the
 /// DR answers), rather than failing the arm.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -333,7 +333,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         drop(heard_tx);
     }
     let mut audio_in = match capture_thread {
-        Some(_) => Some(bus.publisher(&topics::AUDIO_IN).await?),
+        Some(_) => Some(
+            bus.recent_publisher(&topics::AUDIO_IN, topics::AUDIO_IN_KEPT)
+                .await?,
+        ),
         None => None,
     };
     let mut play_tx = None;
@@ -426,7 +429,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 }
                 Some(Heard::Back) => {
                     tracing::info!("the microphone {:?} is back", config.source);
-                    match bus.publisher(&topics::AUDIO_IN).await {
+                    match bus.recent_publisher(&topics::AUDIO_IN, topics::AUDIO_IN_KEPT).await {
                         Ok(p) => audio_in = Some(p),
                         Err(e) => break Err(e.into()),
                     }

@@ -97,6 +97,9 @@ impl Hearing {
 
 /// What the robot says when it holds a command for a reader that is restarting.
 pub const HOLDING: &str = "One moment, please.";
+/// An utterance stamped longer ago than this (s) is judged at its arrival: a restarted
+/// recognizer catches up on at most what the microphone keeps (`topics::AUDIO_IN_KEPT`).
+const SAID_AGE_MAX_S: f64 = 15.0;
 /// What the robot says when nothing hears the person any more (the recognizer is restarting).
 pub const CANNOT_HEAR: &str = "I can't hear you for a moment. Please wait.";
 /// What it says when it hears the person again.
@@ -224,7 +227,13 @@ pub async fn run(
             u = utterances.recv() => {
                 let u = u?;
                 tracing::info!("heard {:?} (confidence {:.2}, {:?})", u.text, u.confidence, u.command);
-                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns, stream_start_s: u.stream_start_s })
+                // When the words ended: the utterance's stamp is the audio's time (a restarted
+                // recognizer catching up hands words said before they arrive).
+                // A stamp older than the microphone keeps audio is from a clock not in step
+                // with this one: the arrival is taken instead.
+                let age_s = (clock.now_ns() - u.header.stamp_ns).max(0) as f64 / 1e9;
+                let said_s = (age_s <= SAID_AGE_MAX_S).then(|| now() - age_s);
+                dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns, stream_start_s: u.stream_start_s, said_s })
             }
             a = answers.recv() => dialog.panel_answer(now(), a?.yes),
             s = speaking.recv() => {

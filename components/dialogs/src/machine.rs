@@ -94,6 +94,10 @@ pub struct Heard {
     pub stamp_ns: i64,
     /// Where the utterance starts on the recognizer's stream (s).
     pub stream_start_s: f64,
+    /// When its words ended, on the dialog's time line (from the utterance's stamp, the audio's
+    /// time): earlier than the arrival when a restarted recognizer caught up on them. `None`:
+    /// at its arrival.
+    pub said_s: Option<f64>,
 }
 
 /// A command the dialog lets through.
@@ -153,6 +157,9 @@ pub struct Dialog {
     quiet_since_s: f64,
     /// The words of the robot's sentences since it was last quiet for `echo_guard_s`.
     robot_words: Vec<Vec<String>>,
+    /// When the robot's current talk (its sentences since it was last quiet for
+    /// `echo_guard_s`) began, and when it had been quiet since before it.
+    talk_began: Option<(f64, f64)>,
     /// Where the last utterances the recognizer heard as sustained speech start (s on its
     /// stream), newest last.
     sustained: std::collections::VecDeque<f64>,
@@ -186,6 +193,7 @@ impl Dialog {
             speaking_until_s: f64::NEG_INFINITY,
             quiet_since_s: f64::NEG_INFINITY,
             robot_words: Vec::new(),
+            talk_began: None,
             sustained: Default::default(),
         })
     }
@@ -194,6 +202,7 @@ impl Dialog {
     pub fn robot_started_speaking(&mut self, now_s: f64, duration_s: f64, text: &str) {
         if !self.robot_heard_at(now_s) {
             self.robot_words.clear();
+            self.talk_began = Some((now_s, self.quiet_since_s));
         }
         self.robot_words.push(words(text));
         let d = if duration_s.is_finite() && duration_s > 0.0 {
@@ -229,6 +238,18 @@ impl Dialog {
     /// `echo_guard_s` ago.
     fn robot_heard_at(&mut self, now_s: f64) -> bool {
         self.speaking_at(now_s) || now_s - self.quiet_since_s < self.cfg.echo_guard_s
+    }
+
+    /// Whether words that ended at `said_s` may be the robot itself. Words said before the
+    /// robot's current talk began (a restarted recognizer catching up on them) are judged by
+    /// the quiet before that talk, not by the talk.
+    fn robot_heard_when(&mut self, said_s: f64) -> bool {
+        match self.talk_began {
+            Some((began_s, quiet_before_s)) if said_s < began_s => {
+                said_s - quiet_before_s < self.cfg.echo_guard_s
+            }
+            _ => self.robot_heard_at(said_s),
+        }
     }
 
     /// Whether `text` is words of what the robot is saying or just said.
@@ -323,7 +344,7 @@ impl Dialog {
     /// A recognized utterance at `now_s`.
     pub fn heard(&mut self, now_s: f64, h: Heard) -> Vec<Action> {
         let mut out = Vec::new();
-        if self.robot_heard_at(now_s) {
+        if self.robot_heard_when(h.said_s.unwrap_or(now_s).min(now_s)) {
             let barge_in = self.cfg.barge_in
                 && h.command != Command::None
                 && h.confidence >= self.cfg.high
@@ -413,6 +434,7 @@ mod tests {
             command,
             stamp_ns: 0,
             stream_start_s: 0.0,
+            said_s: None,
         }
     }
     fn dialog() -> Dialog {
@@ -575,6 +597,7 @@ mod tests {
         // adapts): not sustained speech, ignored.
         let burst = Heard {
             stream_start_s: 12.0,
+            said_s: None,
             ..heard(Command::No, 0.8)
         };
         assert_eq!(
@@ -585,6 +608,7 @@ mod tests {
         d.speech_started(13.0);
         let stop = Heard {
             stream_start_s: 13.0,
+            said_s: None,
             ..heard(Command::Stop, 0.9)
         };
         let a = d.heard(1.5, stop);
@@ -662,6 +686,7 @@ mod tests {
             command: Command::TouchBall,
             stamp_ns: 0,
             stream_start_s: 0.0,
+            said_s: None,
         };
         assert_eq!(
             d.heard(11.0, touch()),
@@ -684,6 +709,42 @@ mod tests {
         assert!(
             out.iter().any(|a| matches!(a, Action::Publish(_))),
             "{out:?}"
+        );
+    }
+
+    #[test]
+    fn words_said_before_the_robot_began_to_talk_are_taken_when_they_arrive_late() {
+        let mut d = dialog();
+        // "let's play" ended at 10 s; the recognizer, restarted, caught up on it and hands it on
+        // at 12.5 s, while the robot says it can hear again (from 12 s).
+        d.robot_started_speaking(12.0, 1.5, "I can hear you again.");
+        let late = Heard {
+            said_s: Some(10.0),
+            ..heard(Command::Play, 0.95)
+        };
+        assert_eq!(
+            published(&d.heard(12.5, late)),
+            vec![(Command::Play, false)]
+        );
+        // Words that ended while the robot talks may be its echo: ignored as before.
+        let during = Heard {
+            said_s: Some(12.4),
+            ..heard(Command::ScanBall, 0.95)
+        };
+        assert_eq!(
+            d.heard(12.6, during),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
+        );
+        // So are words that ended within the echo guard after the talk before this one.
+        d.robot_speaking(14.0, false);
+        d.robot_started_speaking(20.0, 1.0, "I see the ball.");
+        let echo = Heard {
+            said_s: Some(14.1),
+            ..heard(Command::ScanBall, 0.95)
+        };
+        assert_eq!(
+            d.heard(20.5, echo),
+            vec![Action::Ignored(IgnoreReason::RobotSpeaking)]
         );
     }
 }

@@ -4,13 +4,14 @@
 //! Every utterance is also printed on stdout as one line `utterance {json}`.
 
 use crate::confidence::ConfidenceConfig;
+use crate::heard;
 use crate::model::{AcousticModel, adapted_model_dir};
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
 use interfaces::clock::Moment;
 use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
-use interfaces::msg::speech::{Utterance, VoiceActivity, VoiceState};
+use interfaces::msg::speech::{AudioChunk, Utterance, VoiceActivity, VoiceState};
 use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
@@ -73,6 +74,11 @@ pub struct Config {
     /// How long a held utterance waits for a reader before it is dropped (s).
     #[arg(long, default_value_t = 15.0)]
     pub hold_s: f64,
+    /// The component's state folder (from the launcher, ROBOCOG_STATE_DIR): how far the stream
+    /// was heard is kept there, and a restarted recognizer catches up on what was said while it
+    /// was down (see `heard`). None: it starts from the live stream.
+    #[arg(long, env = "ROBOCOG_STATE_DIR")]
+    pub state_dir: Option<PathBuf>,
 }
 
 /// The `speech_recognition` component.
@@ -87,6 +93,8 @@ pub struct Prepared {
     pub readers: Vec<String>,
     /// How long an utterance is held for them at most.
     pub hold: Duration,
+    /// Where how far the stream was heard is kept.
+    pub state_dir: Option<PathBuf>,
 }
 
 impl Component for SpeechRecognition {
@@ -119,6 +127,7 @@ impl Component for SpeechRecognition {
                 .filter(|r| !r.is_empty())
                 .collect(),
             hold: Duration::from_secs_f64(config.hold_s),
+            state_dir: config.state_dir,
         })
     }
 
@@ -189,8 +198,70 @@ pub const SUSTAINED_SPEECH_S: f64 = 0.15;
 enum Decoded {
     /// The end-pointer opened, ended or dropped an utterance (at that stream time, s).
     Activity(VoiceState, f64),
-    /// An utterance decoded, from audio that arrived then (on the component's clock).
-    Utterance(Recognized, Moment),
+    /// Every chunk up to the one stamped this (ns) is heard: no speech is open.
+    Heard(i64),
+    /// An utterance decoded, from audio that arrived then (on the component's clock), its end
+    /// in the chunk stamped this (ns, the microphone's time).
+    Utterance(Recognized, Moment, i64),
+}
+
+/// How long a restarted recognizer waits for the microphone's kept audio.
+const CATCH_UP_WAIT: Duration = Duration::from_secs(2);
+/// A gap between the mark and the first kept chunk longer than this is audio lost.
+const CHUNK_GAP_NS: i64 = 500_000_000;
+
+/// One chunk of `audio/in` to the decoder: one of the wrong format, or one the decoder has no
+/// room for, is dropped and counted.
+fn feed(
+    bus: &Bus,
+    audio_tx: &std::sync::mpsc::SyncSender<(Vec<i16>, Moment, i64)>,
+    chunk: AudioChunk,
+) -> anyhow::Result<()> {
+    let reason = if chunk.sample_rate_hz != RATE_HZ {
+        Some("wrong_rate")
+    } else if chunk.channels != 1 {
+        Some("not_mono")
+    } else if !chunk.pcm_s16le.len().is_multiple_of(2) {
+        Some("odd_bytes")
+    } else if chunk.pcm_s16le.is_empty() {
+        Some("empty")
+    } else {
+        None
+    };
+    if let Some(reason) = reason {
+        let c = bus.counters().counter(&format!("audio_dropped/{reason}"));
+        let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        if n.is_power_of_two() || n == 0 {
+            tracing::warn!(
+                "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz mono s16le), {} so far",
+                chunk.sample_rate_hz,
+                chunk.channels,
+                chunk.pcm_s16le.len(),
+                n + 1
+            );
+        }
+        return Ok(());
+    }
+    let Some(samples) = chunk.samples() else {
+        return Ok(());
+    };
+    match audio_tx.try_send((samples, bus.clock().now(), chunk.header.stamp_ns)) {
+        Ok(()) => Ok(()),
+        Err(std::sync::mpsc::TrySendError::Full(_)) => {
+            let c = bus.counters().counter("audio_dropped/decoder_behind");
+            let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if n.is_power_of_two() || n == 0 {
+                tracing::warn!(
+                    "the decoder is {DECODER_BACKLOG} chunks behind: dropped an audio chunk, {} so far",
+                    n + 1
+                );
+            }
+            Ok(())
+        }
+        Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
+            anyhow::bail!("the decoder thread stopped")
+        }
+    }
 }
 
 /// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
@@ -250,7 +321,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     // Bounded both ways: audio the decoder has not taken within DECODER_BACKLOG chunks is
     // dropped and counted (`audio_dropped/decoder_behind`), and the decoder waits for this
     // loop to take its results.
-    let (audio_tx, audio_rx) = std::sync::mpsc::sync_channel::<(Vec<i16>, Moment)>(DECODER_BACKLOG);
+    let (audio_tx, audio_rx) =
+        std::sync::mpsc::sync_channel::<(Vec<i16>, Moment, i64)>(DECODER_BACKLOG);
+    let preroll_ns = (recognizer.config().vad.preroll_s.max(0.0) * 1e9) as i64;
     let (res_tx, mut res_rx) = tokio::sync::mpsc::channel::<anyhow::Result<Decoded>>(16);
     std::thread::Builder::new()
         .name("decoder".into())
@@ -258,7 +331,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             let mut heard_s = 0.0;
             // The start of the utterance whose speech was announced.
             let mut announced: Option<f64> = None;
-            while let Ok((samples, arrived)) = audio_rx.recv() {
+            while let Ok((samples, arrived, stamp_ns)) = audio_rx.recv() {
                 let dropped_before = recognizer.dropped_short();
                 heard_s += samples.len() as f64 / f64::from(RATE_HZ);
                 match recognizer.push(&samples) {
@@ -267,7 +340,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         let mut events = Vec::new();
                         for r in v {
                             events.push(Decoded::Activity(VoiceState::Ended, r.end_s));
-                            events.push(Decoded::Utterance(r, arrived));
+                            events.push(Decoded::Utterance(r, arrived, stamp_ns));
                         }
                         if dropped {
                             events.push(Decoded::Activity(VoiceState::Dropped, heard_s));
@@ -280,6 +353,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         {
                             announced = Some(start);
                             events.push(Decoded::Activity(VoiceState::Started, start));
+                        }
+                        if recognizer.speech_open().is_none() {
+                            events.push(Decoded::Heard(stamp_ns));
                         }
                         for e in events {
                             if res_tx.blocking_send(Ok(e)).is_err() {
@@ -295,6 +371,35 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             }
         })?;
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
+    // A restart: what was said while this recognizer was down, from the microphone's kept audio.
+    let mut keeper = prepared.state_dir.as_deref().map(heard::Keeper::new);
+    let mut fed_until_ns = i64::MIN;
+    // An utterance was decoded since the mark was last offered: the next is written at once.
+    let mut decoded = false;
+    if let Some(mark) = prepared.state_dir.as_deref().and_then(heard::load) {
+        // From a VAD pre-roll before the mark: a word whose first frames had not opened speech
+        // yet is heard whole (what lies before is silence, or the last utterance's hang-over).
+        let after = mark.saturating_sub(preroll_ns);
+        let missed = bus.recent(&topics::AUDIO_IN, after, CATCH_UP_WAIT).await?;
+        let seconds: f64 = missed
+            .iter()
+            .map(|c| c.pcm_s16le.len() as f64 / 2.0 / f64::from(c.sample_rate_hz.max(1)))
+            .sum();
+        match missed.first() {
+            Some(first) if first.header.stamp_ns - after > CHUNK_GAP_NS => tracing::warn!(
+                "restarted: {:.1} s of audio said while this recognizer was down is no longer                  kept by the microphone and was lost; catching up on the {seconds:.1} s kept",
+                (first.header.stamp_ns - after) as f64 / 1e9
+            ),
+            Some(_) => tracing::info!(
+                "restarted: catching up on {seconds:.1} s of audio said while this recognizer                  was down"
+            ),
+            None => tracing::info!("restarted: nothing was said while this recognizer was down"),
+        }
+        for chunk in missed {
+            fed_until_ns = fed_until_ns.max(chunk.header.stamp_ns);
+            feed(&bus, &audio_tx, chunk)?;
+        }
+    }
     // What is heard while the dialog restarts waits for it (see `interfaces::outbox`).
     let mut readers = Readers::watch(&bus, &topics::SPEECH_UTTERANCE).await?;
     let mut outbox: Outbox<Utterance> = Outbox::new(bus.clock().clone(), prepared.hold);
@@ -331,49 +436,15 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             _ = tick.tick() => {}
             chunk = audio.recv() => {
                 let chunk = chunk?;
-                let reason = if chunk.sample_rate_hz != RATE_HZ {
-                    Some("wrong_rate")
-                } else if chunk.channels != 1 {
-                    Some("not_mono")
-                } else if chunk.pcm_s16le.len() % 2 != 0 {
-                    Some("odd_bytes")
-                } else if chunk.pcm_s16le.is_empty() {
-                    Some("empty")
-                } else {
-                    None
-                };
-                if let Some(reason) = reason {
-                    let c = bus.counters().counter(&format!("audio_dropped/{reason}"));
-                    let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    if n.is_power_of_two() || n == 0 {
-                        tracing::warn!(
-                            "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz mono s16le), {} so far",
-                            chunk.sample_rate_hz, chunk.channels, chunk.pcm_s16le.len(), n + 1
-                        );
-                    }
+                // Already fed from the microphone's kept audio, as this recognizer caught up.
+                if chunk.header.stamp_ns <= fed_until_ns {
                     continue;
                 }
-                let Some(samples) = chunk.samples() else { continue };
-                match audio_tx.try_send((samples, bus.clock().now())) {
-                    Ok(()) => {}
-                    Err(std::sync::mpsc::TrySendError::Full(_)) => {
-                        let c = bus.counters().counter("audio_dropped/decoder_behind");
-                        let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if n.is_power_of_two() || n == 0 {
-                            tracing::warn!(
-                                "the decoder is {DECODER_BACKLOG} chunks behind: dropped an audio chunk, {} so far",
-                                n + 1
-                            );
-                        }
-                    }
-                    Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
-                        anyhow::bail!("the decoder thread stopped");
-                    }
-                }
+                feed(&bus, &audio_tx, chunk)?;
             }
             r = res_rx.recv() => {
                 let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };
-                let (r, arrived) = match r? {
+                let (r, arrived, said_ns) = match r? {
                     Decoded::Activity(state, stream_s) => {
                         tracing::debug!("voice activity: {state:?} at {stream_s:.2} s");
                         activity
@@ -381,9 +452,23 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                             .await?;
                         continue;
                     }
-                    Decoded::Utterance(r, arrived) => (r, arrived),
+                    Decoded::Heard(stamp_ns) => {
+                        // Heard, unless an utterance still waits for its reader in the outbox.
+                        if let Some(k) = keeper.as_mut()
+                            && outbox.held() == 0
+                        {
+                            k.offer(stamp_ns, std::mem::take(&mut decoded));
+                        }
+                        continue;
+                    }
+                    Decoded::Utterance(r, arrived, stamp_ns) => (r, arrived, stamp_ns),
                 };
-                let msg = to_msg(&r, bus.clock().elapsed(arrived).as_secs_f64());
+                decoded = true;
+                let mut msg = to_msg(&r, bus.clock().elapsed(arrived).as_secs_f64());
+                // Stamped with when the words were said (the audio's time), not when they were
+                // decoded: the dialog judges echo by it, and a recognizer that caught up after
+                // a restart hands on words said before they arrive.
+                msg.header.stamp_ns = said_ns;
                 tracing::info!("heard {:?} (confidence {:.2}, {:?}, {:.2}-{:.2} s)", r.text, r.confidence, r.command, r.start_s, r.end_s);
                 // Why it is as sure as it is (see `confidence`): the parts of the confidence.
                 tracing::debug!(

@@ -26,6 +26,7 @@ pub mod confidence;
 pub mod denoise;
 pub mod garbage;
 pub mod grammar;
+pub mod heard;
 pub mod model;
 pub mod recognizer;
 pub mod vad;

@@ -260,7 +260,10 @@ pub async fn run(
     let noise_power = speech_power / 10f64.powf(sc.voice.snr_db / 10.0);
     let (speech_tx, speech_rx) = mpsc::channel::<SpeechJob>(4);
     let out = match &cfg.voice_out {
-        VoiceOut::Bus => AudioOut::Bus(bus.publisher(&topics::AUDIO_IN).await?),
+        VoiceOut::Bus => AudioOut::Bus(
+            bus.recent_publisher(&topics::AUDIO_IN, topics::AUDIO_IN_KEPT)
+                .await?,
+        ),
         VoiceOut::Pulse { server, sink } => AudioOut::Pulse(into_room(server.clone(), sink)?),
     };
     tasks.spawn(audio_stream(out, speech_rx, noise_power, cfg.seed));

@@ -15,7 +15,7 @@ pub(super) type SpeechJob = (Vec<i16>, oneshot::Sender<()>);
 
 /// Where [`audio_stream`] puts its chunks.
 pub(super) enum AudioOut {
-    Bus(interfaces::Publisher<AudioChunk>),
+    Bus(interfaces::RecentPublisher<AudioChunk>),
     /// To the thread that writes them into the sound server.
     Pulse(std::sync::mpsc::SyncSender<Vec<i16>>),
 }
