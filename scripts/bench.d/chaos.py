@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
-"""The chaos matrix's driver (scripts/bench chaos): for every cell (a component, a phase of the
-touch game), one `robocog launch` of the game with the simulated person (scenario `still`), the
-component killed with SIGKILL the moment the phase begins, and a verdict on what the person saw:
+"""The chaos matrix's driver (scripts/bench chaos): for every cell (a component, a phase of a
+game), one `robocog launch` of the game, the component killed with SIGKILL the moment the phase
+begins, and a verdict on what the person saw.
 
+The touch game (`--game touch`): the simulated person plays the scenario `still`. A cell passes
+when
 - the scenario completed (every expectation met, the launcher exited 0);
 - the launcher restarted the killed component;
 - the person never had to say a command again;
@@ -10,20 +12,35 @@ component killed with SIGKILL the moment the phase begins, and a verdict on what
   "I lost the ball", "out of my sight", "I can't reach it", "I am not touching the ball", ...
   are all untrue (what the robot said comes from `speech/say`, through `robocog topic echo`).
 
+The coach game (`--game coach`): one attack on the simulated field (its other robots standing
+still, no random falls), a coach outside the graph (`sim_coach.Coach`) giving four panel
+commands; the phases are each command in flight, a penalty (the GameController's, scripted) and
+a fall (the robot knocked over while walking). A cell passes when
+- the attack was played to its end and the launcher's components stopped cleanly;
+- the launcher restarted the killed component;
+- every command the coach gave reached the robot (it never had to give one again), and the
+  robot never obeyed a command the coach did not give;
+- the robot said nothing untrue: no "not responding" (the link never broke), no fall or penalty
+  it did not have.
+
 Prints the matrix (one row per component, one column per phase), what failed in each failed
 cell, keeps every cell's output in OUT_DIR, and as its last line one JSON object.
 
-Usage: chaos.py BIN_DIR OUT_DIR [--components a,b,...] [--phases p,q,...]
+Usage: chaos.py BIN_DIR OUT_DIR [--game touch|coach] [--components a,b,...] [--phases p,q,...]
 """
 import argparse
 import json
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sim_coach import Coach  # noqa: E402
 
 COMPONENTS = ["deep_representation", "joint_motor", "body_inverse_kinematics", "ball_tracker",
               "rgbd", "speech_generator", "dialogs", "speech_recognition", "executive"]
@@ -42,18 +59,39 @@ UNTRUE = ["I cannot find the ball", "The ball is out of my sight", "I lost the b
           "I can't reach it", "Something is wrong with my arm", "I have not seen the ball yet",
           "I am not touching the ball", "That is not a command of this game",
           "I think I touched it"]
+
+COACH_COMPONENTS = ["nao_bridge", "deep_representation", "speech_generator", "dialogs",
+                    "speech_recognition", "executive"]
+CONTROLLED = "RobotId { side: Us, number: 2 }"
+# Each phase of the coach game's attack, and the field's line that starts it.
+COACH_PHASES = {
+    "go_to": "robot 2 obeys Some(GoToPosition)",
+    "turn": "robot 2 obeys Some(Turn)",
+    "search": "robot 2 obeys Some(SearchTheBall)",
+    "dribble": "robot 2 obeys Some(GoToBallAndDribble)",
+    "penalty": f"Penalised {{ robot: {CONTROLLED}",
+    "fall": f"Fell {{ robot: {CONTROLLED}",
+}
+# The coach game at 3x; the scripted penalty (simulated s into PLAYING, while the robot turns).
+COACH_SCALE = 3.0
+PENALTY_AT_S, PENALTY_S = 15.0, 10.0
+# Untrue on a field where the link never breaks, and (but in their phases) nobody falls or is
+# penalised.
+COACH_UNTRUE = {"The robot is not responding": None, "I fell": "fall",
+                "I am still on the ground": "fall", "I am penalised": "penalty"}
 CELL_LIMIT_S = 240
 STARTED = re.compile(r"started (\S+) \(pid (\d+)\)")
 ROUTER = re.compile(r"router (tcp/[0-9.]+:\d+)")
 
 
 class Cell:
-    def __init__(self, component, phase):
-        self.component, self.phase = component, phase
+    def __init__(self, game, component, phase):
+        self.game, self.component, self.phase = game, component, phase
         self.lines, self.said = [], []
         self.pids, self.router = {}, None
         self.killed_at = None
         self.exit = None
+        self.coach = None
         self.cond = threading.Condition()
 
 
@@ -64,20 +102,49 @@ def read_lines(stream, sink, cell):
             cell.cond.notify_all()
 
 
+def free_udp_ports(n):
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    for s in socks:
+        s.bind(("127.0.0.1", 0))
+    ports = [s.getsockname()[1] for s in socks]
+    for s in socks:
+        s.close()
+    return ports
+
+
+def launch_args(cell, ns):
+    common = ["--namespace", ns, "--router", "tcp/127.0.0.1:0", "--color", "never",
+              "--set", "panel=false"]
+    if cell.game == "touch":
+        return ["launch/touch_the_ball.toml", "--set", "scenario=still"] + common
+    debug, gc, command = free_udp_ports(3)
+    sets = [f"time_scale={COACH_SCALE:g}", "passive_opponents=true", "passive_teammate=true",
+            "falls_per_min=0", f"debug_port={debug}", f"gc_port={gc}",
+            f"command_port={command}"]
+    if cell.phase == "penalty":
+        sets += [f"penalty_at_s={PENALTY_AT_S:g}", f"penalty_s={PENALTY_S:g}"]
+    args = ["launch/nao_coach.toml"] + common
+    for kv in sets:
+        args += ["--set", kv]
+    return args
+
+
 def run_cell(bin_dir, root, out_dir, n, cell):
     ns = f"chaos-{os.getpid()}-{n}"
     launch = subprocess.Popen(
-        [f"{bin_dir}/robocog", "launch", "launch/touch_the_ball.toml", "--set", "scenario=still",
-         "--set", "panel=false", "--namespace", ns, "--router", "tcp/127.0.0.1:0",
-         "--color", "never"],
+        [f"{bin_dir}/robocog", "launch"] + launch_args(cell, ns),
         cwd=root, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
     threading.Thread(target=read_lines, args=(launch.stdout, cell.lines, cell),
                      daemon=True).start()
+    if cell.game == "coach":
+        cell.coach = Coach(f"{bin_dir}/robocog", ns, COACH_SCALE)
     echo = None
     said_raw = []
-    trigger = PHASES[cell.phase]
+    trigger = (PHASES if cell.game == "touch" else COACH_PHASES)[cell.phase]
     deadline = time.monotonic() + CELL_LIMIT_S
     seen = 0
+    knock_at = None
+    stopping = False
     while launch.poll() is None and time.monotonic() < deadline:
         with cell.cond:
             cell.cond.wait(timeout=0.05)
@@ -96,12 +163,26 @@ def run_cell(bin_dir, root, out_dir, n, cell):
                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, bufsize=1)
                 threading.Thread(target=read_lines, args=(echo.stdout, said_raw, cell),
                                  daemon=True).start()
+            if cell.coach is not None and cell.coach.feed(line) is not None and not stopping:
+                # The attack is over: the field stays FINISHED, the launch is stopped.
+                stopping = True
+                launch.send_signal(signal.SIGINT)
+            # The fall: the robot knocked over a moment after it starts walking.
+            if (cell.phase == "fall" and knock_at is None
+                    and COACH_PHASES["go_to"] in line):
+                knock_at = time.monotonic() + 1.5
             if cell.killed_at is None and trigger in line and cell.component in cell.pids:
                 try:
                     os.kill(cell.pids[cell.component], signal.SIGKILL)
                     cell.killed_at = line.strip()
                 except ProcessLookupError:
                     pass
+        if knock_at is not None and time.monotonic() >= knock_at and "spl_field" in cell.pids:
+            knock_at = float("inf")
+            try:
+                os.kill(cell.pids["spl_field"], signal.SIGUSR1)
+            except ProcessLookupError:
+                pass
     if launch.poll() is None:
         launch.send_signal(signal.SIGTERM)
         try:
@@ -112,6 +193,8 @@ def run_cell(bin_dir, root, out_dir, n, cell):
         cell.exit = "timed out"
     else:
         cell.exit = launch.returncode
+        if stopping and cell.exit in (-signal.SIGINT, 130):
+            cell.exit = 0
     time.sleep(0.3)
     if echo is not None:
         echo.terminate()
@@ -139,11 +222,26 @@ def verdict(cell):
     if cell.killed_at is not None and not any(
             f"{cell.component} stopped" in l and "restart 1/" in l for l in cell.lines):
         why.append("not restarted")
-    again = [l for l in cell.lines if "says it again" in l]
-    if again:
-        why.append(f"the person repeated a command {len(again)}x: "
-                   + again[0].split("person: ", 1)[-1])
-    untrue = [s for s in cell.said if any(u.lower() in s.lower() for u in UNTRUE)]
+    if cell.game == "touch":
+        again = [l for l in cell.lines if "says it again" in l]
+        if again:
+            why.append(f"the person repeated a command {len(again)}x: "
+                       + again[0].split("person: ", 1)[-1])
+        untrue = [s for s in cell.said if any(u.lower() in s.lower() for u in UNTRUE)]
+    else:
+        coach = cell.coach
+        if coach.attack == 0:
+            why.append("PLAYING never came")
+        for k in range(1, coach.attack + 1):
+            for w in coach.verdict(k):
+                why.append(f"the coach's {w}")
+        given = {b for k in coach.given for _, b in coach.given[k]}
+        stray = sorted({b for k in coach.obeyed for _, b in coach.obeyed[k]} - given)
+        if stray:
+            why.append("the robot obeyed commands the coach never gave: " + ", ".join(stray))
+        untrue = [s for s in cell.said
+                  if any(u.lower() in s.lower() and phase != cell.phase
+                         for u, phase in COACH_UNTRUE.items())]
     if untrue:
         why.append("the robot said: " + "; ".join(f'"{s}"' for s in untrue))
     return why
@@ -153,27 +251,33 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("bin_dir")
     ap.add_argument("out_dir")
-    ap.add_argument("--components", default=",".join(COMPONENTS))
-    ap.add_argument("--phases", default=",".join(PHASES))
+    ap.add_argument("--game", choices=["touch", "coach"], default="touch")
+    a, rest = ap.parse_known_args()
+    components, phases = ((COMPONENTS, PHASES) if a.game == "touch"
+                          else (COACH_COMPONENTS, COACH_PHASES))
+    ap.add_argument("--components", default=",".join(components))
+    ap.add_argument("--phases", default=",".join(phases))
     a = ap.parse_args()
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     comps = [c for c in a.components.split(",") if c]
-    phases = [p for p in a.phases.split(",") if p]
-    for p in phases:
-        if p not in PHASES:
-            sys.exit(f"unknown phase {p!r}: the phases are {', '.join(PHASES)}")
+    chosen = [p for p in a.phases.split(",") if p]
+    for p in chosen:
+        if p not in phases:
+            sys.exit(f"unknown phase {p!r} of the {a.game} game: the phases are "
+                     f"{', '.join(phases)}")
     for c in comps:
-        if c not in COMPONENTS:
-            sys.exit(f"unknown component {c!r}: the components are {', '.join(COMPONENTS)}")
+        if c not in components:
+            sys.exit(f"unknown component {c!r} of the {a.game} game: the components are "
+                     f"{', '.join(components)}")
     os.makedirs(a.out_dir, exist_ok=True)
     started = time.monotonic()
     results = {}
-    total = len(comps) * len(phases)
+    total = len(comps) * len(chosen)
     n = 0
     for c in comps:
-        for p in phases:
+        for p in chosen:
             n += 1
-            cell = Cell(c, p)
+            cell = Cell(a.game, c, p)
             run_cell(a.bin_dir, root, a.out_dir, n, cell)
             why = verdict(cell)
             results[(c, p)] = why
@@ -183,12 +287,14 @@ def main():
                   file=sys.stderr, flush=True)
 
     print()
-    print(f"chaos matrix: the touch game (scenario still), each component killed (SIGKILL) as "
-          f"each phase begins; {os.cpu_count()} cores")
-    print(f"{'component':24} " + " ".join(f"{p:>9}" for p in phases))
+    what = ("the touch game (scenario still)" if a.game == "touch"
+            else f"the coach game (one attack at {COACH_SCALE:g}x, four panel commands)")
+    print(f"chaos matrix: {what}, each component killed (SIGKILL) as each phase begins; "
+          f"{os.cpu_count()} cores")
+    print(f"{'component':24} " + " ".join(f"{p:>9}" for p in chosen))
     for c in comps:
         print(f"{c:24} " + " ".join(f"{'ok' if not results[(c, p)] else 'FAIL':>9}"
-                                    for p in phases))
+                                    for p in chosen))
     failed = {k: v for k, v in results.items() if v}
     if failed:
         print("\nfailed cells:")
@@ -196,10 +302,12 @@ def main():
             print(f"  {c} at {p}: " + " | ".join(why))
     print(f"\nevery cell's output: {a.out_dir}")
     print(json.dumps({
+        "game": a.game,
         "cells": total,
         "cells_passed": total - len(failed),
         "cells_failed": len(failed),
-        "repeated_commands": sum(1 for v in failed.values() for w in v if "repeated" in w),
+        "repeated_commands": sum(1 for v in failed.values() for w in v
+                                 if "repeated" in w or "never reached" in w),
         "untrue_sentences_cells": sum(1 for v in failed.values() for w in v
                                       if w.startswith("the robot said")),
         "incomplete_games": sum(1 for v in failed.values() for w in v

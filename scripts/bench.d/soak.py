@@ -1,20 +1,25 @@
 #!/usr/bin/env python3
-"""The soak's sampler (scripts/bench soak): runs one `robocog launch` that plays the touch game
-GAMES times, and after each game samples every process of the graph (the launcher, which hosts
-the router, and each component): resident memory, open file descriptors, threads, and the
-router's sessions (established TCP connections the launcher holds). Writes one CSV row per
-process per game, prints a table of each resource at game WARM and at the last game, and as its
-last line one JSON object with the figures.
+"""The soak's sampler (scripts/bench soak): runs one `robocog launch` that plays a game GAMES
+times, and after each game samples every process of the graph (the launcher, its router and
+each component): resident memory, open file descriptors, threads, and the router's sessions
+(established TCP connections of the router). Writes one CSV row per process per game, prints a
+table of each resource at game WARM and at the last game, and as its last line one JSON object
+with the figures.
+
+The touch game is played by the simulated person (a game that fails stops the launch). The
+coach game's attacks are played by `sim_coach.Coach` from outside the graph, which judges
+each attack; the launch is stopped after the last.
 
 Growth is compared between means over a few games (WINDOW) around game WARM and at the end, so
 that one game's allocator noise is not taken for a leak.
 
-Usage: soak.py LAUNCH_ARGS_FILE CSV GAMES WARM
+Usage: soak.py LAUNCH_ARGS_FILE CSV GAMES WARM [--coach ROBOCOG NAMESPACE TIME_SCALE]
 """
 import csv
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -92,6 +97,13 @@ def established(inodes):
 
 def main():
     args_file, csv_path, games, warm = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    coach = None
+    if sys.argv[5:6] == ["--coach"]:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from sim_coach import Coach
+        coach = Coach(sys.argv[6], sys.argv[7], float(sys.argv[8]))
+    game_name = "touch game" if coach is None else "coach game's attack"
+    failed = {}  # game -> what went wrong (the coach's attacks)
     with open(args_file) as f:
         launch = [line.rstrip("\n") for line in f if line.strip()]
     log_path = csv_path[: -len(".csv")] + ".log"
@@ -101,14 +113,22 @@ def main():
     rows = []  # (game, process, pid, rss_kib, fds, threads)
     sessions = {}  # game -> router sessions
     started = time.monotonic()
-    passed = 0
+    played = 0
     for line in proc.stdout:
         log.write(line)
-        m = GAME_DONE.search(line)
-        if not m:
+        if coach is None:
+            m = GAME_DONE.search(line)
+            game = int(m.group(1)) if m else None
+        else:
+            game = coach.feed(line)
+        if game is None:
             continue
-        game = int(m.group(1))
-        passed = game
+        played = game
+        if coach is not None:
+            why = coach.verdict(game)
+            if why:
+                failed[game] = why
+                print(f"  attack {game} FAILED: {' | '.join(why)}", file=sys.stderr, flush=True)
         seen = {}
         router_seen = False
         for pid in [proc.pid] + children(proc.pid):
@@ -127,8 +147,14 @@ def main():
                 router_seen |= name == "router"
         if game == 1 or game % 10 == 0 or game == games:
             mins = (time.monotonic() - started) / 60
-            print(f"  game {game} of {games} passed ({mins:.1f} min)", file=sys.stderr, flush=True)
+            print(f"  game {game} of {games} played, {game - len(failed)} passed "
+                  f"({mins:.1f} min)", file=sys.stderr, flush=True)
+        if coach is not None and game == games:
+            # The field stays FINISHED after its last attack: the launch is stopped.
+            proc.send_signal(signal.SIGINT)
     rc = proc.wait()
+    rc = 0 if coach is not None and played == games and rc in (0, -signal.SIGINT, 130) else rc
+    passed = played - len(failed)
     log.close()
 
     with open(csv_path, "w", newline="") as f:
@@ -137,8 +163,8 @@ def main():
         for r in rows:
             w.writerow(list(r) + [sessions.get(r[0], "")])
 
-    if rc != 0 or passed < games:
-        print(f"the soak stopped after {passed} of {games} games (launcher exit {rc}); "
+    if rc != 0 or played < games:
+        print(f"the soak stopped after {played} of {games} games (launcher exit {rc}); "
               f"its log: {log_path}", file=sys.stderr)
         with open(log_path) as f:
             sys.stderr.writelines(f.readlines()[-30:])
@@ -146,7 +172,7 @@ def main():
     # Means over WINDOW games from game WARM, and over the last WINDOW games played.
     # The last game's sample races with the graph's shutdown (the person leaves, the launcher
     # stops everything): it is left out of the means.
-    last = max(passed - 1, 1) if passed == games else max(passed, 1)
+    last = max(played - 1, 1) if played == games else max(played, 1)
     warm = max(1, min(warm, last - 1))
     window = max(1, min(WINDOW, (last - warm + 1) // 2))
     early = set(range(warm, warm + window))
@@ -162,7 +188,8 @@ def main():
     worst = {"rss": (0.0, ""), "fds": (0.0, ""), "threads": (0.0, "")}
     restarts_total = 0
     print()
-    print(f"soak: the touch game played {passed} of {games} times in one launch, "
+    print(f"soak: the {game_name} played {played} of {games} times in one launch, {passed} "
+          f"passed, "
           f"{os.cpu_count()} cores; means over games {min(early)}-{max(early)} and "
           f"{min(late)}-{last}")
     print(f"{'process':28} {'restarts':>8} {'RSS MiB':>16} {'growth':>7} {'fds':>11} "
@@ -185,6 +212,10 @@ def main():
     s_early = mean([sessions[g] for g in early if g in sessions])
     s_late = mean([sessions[g] for g in late if g in sessions])
     print(f"router sessions (established TCP): {s_early:.1f} -> {s_late:.1f}")
+    if coach is not None:
+        print(f"the field's own time: {coach.field_s / 60:.1f} min")
+    if failed:
+        print(f"failed: " + "; ".join(f"{g}: {' | '.join(w)}" for g, w in sorted(failed.items())))
     ok = passed == games and all(w[0] <= TARGET_PCT for w in worst.values()) \
         and s_late <= s_early and restarts_total == 0
     print(f"target: every game passes and nothing grows more than {TARGET_PCT:.0f} % "
@@ -192,6 +223,7 @@ def main():
     print(f"per game and process: {csv_path}")
     print(json.dumps({
         "games": games,
+        "games_played": played,
         "games_passed": passed,
         "minutes": round((time.monotonic() - started) / 60, 1),
         "rss_growth_max_pct": round(worst["rss"][0], 2),
@@ -202,6 +234,7 @@ def main():
         "router_sessions_early": round(s_early, 1),
         "router_sessions_late": round(s_late, 1),
         "target_met": ok,
+        **({} if coach is None else {"field_minutes": round(coach.field_s / 60, 1)}),
     }))
     # A failed game or a growth is a figure of the soak (target_met), not a failure of the benchmark.
     sys.exit(0)
