@@ -108,15 +108,7 @@ impl<R: Record> StateFile<R> {
             return;
         }
         let result = match &record {
-            Some(r) => (|| {
-                if let Some(dir) = path.parent() {
-                    std::fs::create_dir_all(dir)?;
-                }
-                let mut tmp = path.clone().into_os_string();
-                tmp.push(".tmp");
-                std::fs::write(&tmp, r.to_json())?;
-                std::fs::rename(&tmp, path)
-            })(),
+            Some(r) => interfaces::state::write_atomically(path, r.to_json().as_bytes()),
             None => match std::fs::remove_file(path) {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
                 _ => Ok(()),

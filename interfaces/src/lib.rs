@@ -37,6 +37,7 @@ pub mod outbox;
 pub mod ratelimit;
 pub mod raw;
 pub mod router;
+pub mod state;
 pub mod topic;
 pub mod topics;
 

@@ -24,7 +24,7 @@ struct Posture {
 
 const VERSION: u32 = 1;
 
-/// Writes the posture at most every [`EVERY`] (atomically: a temporary file renamed over it).
+/// Writes the posture at most every [`EVERY`] (`interfaces::state::write_atomically`).
 #[derive(Debug)]
 pub struct Keeper {
     path: PathBuf,
@@ -58,18 +58,9 @@ impl Keeper {
                 .map(|j| (j.name.clone(), j.position))
                 .collect(),
         };
-        let tmp = self.path.with_extension("json.tmp");
-        // The state folder is made by its first writer.
-        let folder = match self.path.parent() {
-            Some(dir) if !self.failed && self.last_written.is_none() => {
-                std::fs::create_dir_all(dir)
-            }
-            _ => Ok(()),
-        };
-        let written = folder
-            .and_then(|()| serde_json::to_vec(&posture).map_err(std::io::Error::other))
-            .and_then(|bytes| std::fs::write(&tmp, bytes))
-            .and_then(|()| std::fs::rename(&tmp, &self.path));
+        let written = serde_json::to_vec(&posture)
+            .map_err(std::io::Error::other)
+            .and_then(|bytes| interfaces::state::write_atomically(&self.path, &bytes));
         match written {
             Ok(()) => {
                 self.failed = false;

@@ -43,7 +43,7 @@ pub fn load(dir: &Path) -> Option<i64> {
     }
 }
 
-/// Writes the mark (atomically: a temporary file renamed over it).
+/// Writes the mark (`interfaces::state::write_atomically`).
 #[derive(Debug)]
 pub struct Keeper {
     path: PathBuf,
@@ -73,15 +73,9 @@ impl Keeper {
             version: VERSION,
             heard_until_ns: mark_ns,
         };
-        let tmp = self.path.with_extension("json.tmp");
-        let folder = match self.path.parent() {
-            Some(dir) if self.written.is_none() => std::fs::create_dir_all(dir),
-            _ => Ok(()),
-        };
-        let done = folder
-            .and_then(|()| serde_json::to_vec(&mark).map_err(std::io::Error::other))
-            .and_then(|bytes| std::fs::write(&tmp, bytes))
-            .and_then(|()| std::fs::rename(&tmp, &self.path));
+        let done = serde_json::to_vec(&mark)
+            .map_err(std::io::Error::other)
+            .and_then(|bytes| interfaces::state::write_atomically(&self.path, &bytes));
         match done {
             Ok(()) => {
                 self.failed = false;
