@@ -497,8 +497,17 @@ async fn a_late_reader_catches_up_on_the_recent_samples_and_no_older() {
         c.header.stamp_ns = i * 100_000_000;
         mic.publish(&mut c).await.unwrap();
     }
-    // The window keeps 250 ms behind the newest: chunks 4, 5 and 6 (3 is 300 ms behind).
-    let all = b.recent(&topics::AUDIO_IN, 0, t).await.unwrap();
+    // The window keeps 250 ms behind the newest: chunks 4, 5 and 6 (3 is 300 ms behind). The
+    // publisher's queryable reaches the other session through the router a moment after it is
+    // declared: asked until it answers.
+    let deadline = std::time::Instant::now() + t;
+    let all = loop {
+        let all = b.recent(&topics::AUDIO_IN, 0, t).await.unwrap();
+        if !all.is_empty() || std::time::Instant::now() > deadline {
+            break all;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
     let stamps: Vec<i64> = all
         .iter()
         .map(|c| c.header.stamp_ns / 100_000_000)
