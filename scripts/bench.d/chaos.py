@@ -90,6 +90,8 @@ class Cell:
         self.lines, self.said = [], []
         self.pids, self.router = {}, None
         self.killed_at = None
+        # How many output lines there were when the component was killed.
+        self.killed_line = None
         self.exit = None
         self.coach = None
         self.cond = threading.Condition()
@@ -175,6 +177,7 @@ def run_cell(bin_dir, root, out_dir, n, cell):
                 try:
                     os.kill(cell.pids[cell.component], signal.SIGKILL)
                     cell.killed_at = line.strip()
+                    cell.killed_line = seen
                 except ProcessLookupError:
                     pass
         if knock_at is not None and time.monotonic() >= knock_at and "spl_field" in cell.pids:
@@ -219,7 +222,11 @@ def verdict(cell):
     if cell.exit != 0:
         last = [l for l in cell.lines if "failed" in l or "expected" in l][-1:]
         why.append(f"the game did not complete (exit {cell.exit}){': ' + last[0] if last else ''}")
-    if cell.killed_at is not None and not any(
+    # A component killed as the game ends is not restarted when the graph is done before the
+    # restart's back-off is over: no fault of the graph.
+    done_after_kill = cell.killed_line is not None and any(
+        "the graph is done" in l for l in cell.lines[cell.killed_line:])
+    if cell.killed_at is not None and not done_after_kill and not any(
             f"{cell.component} stopped" in l and "restart 1/" in l for l in cell.lines):
         why.append("not restarted")
     if cell.game == "touch":
