@@ -235,7 +235,8 @@ impl Readers {
 /// [`stopping_key`] token before it stops the first component, so that the others do not take
 /// their neighbours' leaving for a failure (a dialog would tell the person it cannot hear her
 /// while the game shuts down). The token reaches every component before any component's own
-/// token vanishes: both travel the same router, in order.
+/// token vanishes: the launcher stops the first component only once its router has the token,
+/// and the router forwards in order.
 pub struct Stopping {
     rx: tokio::sync::watch::Receiver<bool>,
     _subscriber: zenoh::pubsub::Subscriber<()>,

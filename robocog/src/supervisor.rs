@@ -630,17 +630,16 @@ pub async fn launch(manifest: Manifest, opts: LaunchOptions) -> anyhow::Result<i
     // Said on the bus first, so that no component takes its neighbours' leaving for a failure
     // (the dialog would tell the person it cannot hear her).
     let session = session_bus.session();
+    let stopping_key = liveliness::stopping_key(&opts.namespace, &session.zid().to_string());
     let stopping = session
         .liveliness()
-        .declare_token(liveliness::stopping_key(
-            &opts.namespace,
-            &session.zid().to_string(),
-        ))
+        .declare_token(stopping_key.clone())
         .await;
-    if let Err(e) = &stopping {
-        say(format!(
+    match &stopping {
+        Err(e) => say(format!(
             "cannot tell the graph it is stopping ({e}): its components may report each other gone"
-        ));
+        )),
+        Ok(_) => router_has(session, &stopping_key).await,
     }
     stop_all(&manifest, &mut children, machines.as_ref()).await;
     drop(stopping);
@@ -725,4 +724,36 @@ pub(crate) async fn component_tokens(
         .with(zenoh::handlers::FifoChannel::new(1024))
         .await
         .map_err(|e| anyhow::anyhow!("cannot watch liveliness: {e}"))
+}
+
+/// Waits (at most 2 s) until the router has the launcher's liveliness token `key`. The launcher
+/// is a client of its router: a declared token is on its way there, not there yet, and a
+/// component stopped at once could leave before it. A query for the token over the same link is
+/// answered after the router took the declaration, so it reaches every component before the
+/// first component's own token vanishes.
+#[expect(
+    clippy::disallowed_methods,
+    reason = "a transport time-out, on the wall as zenoh's own query time-out is"
+)]
+async fn router_has(session: &zenoh::Session, key: &str) {
+    const WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+    let seen = async {
+        let replies = session.liveliness().get(key).timeout(WAIT).await.ok()?;
+        while let Ok(reply) = replies.recv_async().await {
+            if reply.result().is_ok() {
+                return Some(());
+            }
+        }
+        None
+    };
+    if tokio::time::timeout(WAIT, seen)
+        .await
+        .ok()
+        .flatten()
+        .is_none()
+    {
+        say(
+            "the router did not confirm that the graph is stopping within 2 s: its components may report each other gone",
+        );
+    }
 }
