@@ -228,9 +228,9 @@ pub async fn run(
                 let u = u?;
                 tracing::info!("heard {:?} (confidence {:.2}, {:?})", u.text, u.confidence, u.command);
                 // When the words ended: the utterance's stamp is the audio's time (a restarted
-                // recognizer catching up hands words said before they arrive).
-                // A stamp older than the microphone keeps audio is from a clock not in step
-                // with this one: the arrival is taken instead.
+                // recognizer catching up hands on words said before they arrive). A stamp older
+                // than the microphone keeps audio is from a clock out of step with this one: the
+                // arrival is taken instead.
                 let age_s = (clock.now_ns() - u.header.stamp_ns).max(0) as f64 / 1e9;
                 let said_s = (age_s <= SAID_AGE_MAX_S).then(|| now() - age_s);
                 dialog.heard(now(), Heard { game: u.game, text: u.text, confidence: u.confidence, command: u.command, stamp_ns: u.header.stamp_ns, stream_start_s: u.stream_start_s, said_s })

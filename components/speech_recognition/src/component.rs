@@ -380,18 +380,30 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         // From a VAD pre-roll before the mark: a word whose first frames had not opened speech
         // yet is heard whole (what lies before is silence, or the last utterance's hang-over).
         let after = mark.saturating_sub(preroll_ns);
-        let missed = bus.recent(&topics::AUDIO_IN, after, CATCH_UP_WAIT).await?;
+        // Without the kept audio (no microphone keeps it, the bus failed), the live stream.
+        let missed = match bus.recent(&topics::AUDIO_IN, after, CATCH_UP_WAIT).await {
+            Ok(missed) => missed,
+            Err(e) => {
+                tracing::warn!(
+                    "restarted: cannot ask the microphone for what was said meanwhile ({e}); \
+                     listening from now on"
+                );
+                Vec::new()
+            }
+        };
         let seconds: f64 = missed
             .iter()
             .map(|c| c.pcm_s16le.len() as f64 / 2.0 / f64::from(c.sample_rate_hz.max(1)))
             .sum();
         match missed.first() {
             Some(first) if first.header.stamp_ns - after > CHUNK_GAP_NS => tracing::warn!(
-                "restarted: {:.1} s of audio said while this recognizer was down is no longer                  kept by the microphone and was lost; catching up on the {seconds:.1} s kept",
+                "restarted: {:.1} s of audio said while this recognizer was down is no longer \
+                 kept by the microphone and was lost; catching up on the {seconds:.1} s kept",
                 (first.header.stamp_ns - after) as f64 / 1e9
             ),
             Some(_) => tracing::info!(
-                "restarted: catching up on {seconds:.1} s of audio said while this recognizer                  was down"
+                "restarted: catching up on {seconds:.1} s of audio said while this recognizer \
+                 was down"
             ),
             None => tracing::info!("restarted: nothing was said while this recognizer was down"),
         }
