@@ -410,6 +410,11 @@ pub fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Optio
     }
 }
 
+/// The pid in a launcher's or an agent's line `started <name> (pid N): ...`.
+pub fn started_pid(line: &str) -> Option<u32> {
+    line.split("(pid ").nth(1)?.split(')').next()?.parse().ok()
+}
+
 /// The pid of live component `name`, from `robocog component list --json`.
 pub fn component_pid(launch: &Launch, name: &str) -> Option<u32> {
     let out = launch.robocog(&["component", "list", "--json"], Duration::from_secs(15));

@@ -256,12 +256,7 @@ fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off()
         .wait_for("the talker's pid", Duration::from_secs(1), |l| {
             l.contains("started talker (pid")
         });
-    let pid: u32 = line
-        .split("(pid ")
-        .nth(1)
-        .and_then(|s| s.split(')').next())
-        .and_then(|s| s.parse().ok())
-        .expect("a pid");
+    let pid = robocog_tests::started_pid(&line).expect("a pid");
     robocog_tests::signal(pid, "KILL");
     robot
         .lines
@@ -292,12 +287,7 @@ fn a_graph_over_two_machines_starts_across_them_and_notices_one_that_drops_off()
             .wait_for("the speech machine's router", Duration::from_secs(1), |l| {
                 l.contains("started router (pid ")
             });
-    let router_pid: u32 = router_line
-        .split("started router (pid ")
-        .nth(1)
-        .and_then(|s| s.split(')').next())
-        .and_then(|s| s.parse().ok())
-        .expect("the router's pid");
+    let router_pid = robocog_tests::started_pid(&router_line).expect("the router's pid");
     let before = last_hello(&robot);
     robocog_tests::signal(router_pid, "KILL");
     speech.lines.wait_until(
