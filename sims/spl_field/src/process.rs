@@ -338,3 +338,35 @@ impl interfaces::node::Component for SplFieldComponent {
         run(bus, net, sim, shutdown).await
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+    use interfaces::node::Component;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        flags: Flags,
+    }
+
+    fn prepare(args: &[&str]) -> anyhow::Result<(NetConfig, SimConfig)> {
+        let cli = Cli::try_parse_from(std::iter::once("spl_field").chain(args.iter().copied()))?;
+        SplFieldComponent::prepare(cli.flags)
+    }
+
+    #[test]
+    fn attack_counts_and_pauses_that_make_no_sense_are_refused_by_name() {
+        let (net, _) = prepare(&["--attacks", "36", "--between-attacks-s", "2"]).unwrap();
+        assert_eq!((net.attacks, net.between_attacks_s), (36, 2.0));
+        let e = prepare(&["--attacks", "0"]).unwrap_err().to_string();
+        assert!(e.contains("--attacks must be at least 1"), "{e}");
+        for bad in ["-1", "NaN", "inf"] {
+            let flag = format!("--between-attacks-s={bad}");
+            let e = prepare(&[&flag]).unwrap_err().to_string();
+            assert!(e.contains("--between-attacks-s"), "{bad}: {e}");
+        }
+        assert!(prepare(&["--attacks", "many"]).is_err());
+    }
+}
