@@ -179,6 +179,7 @@ build_graph() {
   local bins=() p
   for p in $programs; do
     case "$p" in
+      "$ROBOCOG_PYTHON") need_python ;; # the graph has Python components
       */*) ;; # a program of the user's own, by path
       *) bins+=(--bin "$p") ;;
     esac
@@ -212,6 +213,47 @@ need_browser() {
     step "installing playwright-core for the browser tests (npm ci in tests/browser)"
     (cd "$dir" && npm ci --no-audit --no-fund --silent)
   fi
+}
+
+# The Python of robocog's Python components: a venv outside the clone with NumPy, OpenCV and the
+# eclipse-zenoh client (the benchmark's peer), pinned; the `robocog` package (libs/python) with its
+# extension built through the workspace, so with the same artifacts as every other build (a
+# `pip install libs/python` builds it with maturin, the package alone, and compiles zenoh again
+# with other features); and the Python ball tracker (components/ball_tracker_py). ROBOCOG_PYTHON
+# is the interpreter the launcher runs `python = "..."` components with, PYO3_PYTHON the one
+# every build of the extension targets (the same, so builds never invalidate each other).
+PY_VENV="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/python"
+export ROBOCOG_PYTHON="${ROBOCOG_PYTHON:-$PY_VENV/bin/python}"
+export PYO3_PYTHON="${PYO3_PYTHON:-$PY_VENV/bin/python}"
+need_python_venv() {
+  local pins="numpy==2.4.6 opencv-python-headless==5.0.0.93 eclipse-zenoh==1.10.2 setuptools==80.9.0"
+  local stamp
+  stamp="$PY_VENV/.pins-$(echo "$pins" | cksum | cut -d' ' -f1)"
+  if [ ! -x "$PY_VENV/bin/python" ] || [ ! -f "$stamp" ]; then
+    need_debs python3-venv
+    step "making the Python venv of robocog's Python components ($pins) in $PY_VENV"
+    python3 -m venv "$PY_VENV"
+    # shellcheck disable=SC2086
+    "$PY_VENV/bin/pip" install --quiet --disable-pip-version-check $pins
+    touch "$stamp"
+  fi
+}
+need_python() {
+  need_python_venv
+  step "building the robocog Python package's extension (libs/python, through the workspace)"
+  STEP_HINT="$CARGO_HINT"
+  (cd "$ROOT" && cargo build --release --workspace --lib --quiet)
+  STEP_HINT=""
+  step "installing the robocog Python package and the Python ball tracker into $PY_VENV"
+  local site
+  site="$("$PY_VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+  local suffix
+  suffix="$("$PY_VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_config_var("EXT_SUFFIX"))')"
+  rm -rf "$site/robocog"
+  cp -r "$ROOT/libs/python/robocog" "$site/robocog"
+  cp "$BIN/lib_robocog.so" "$site/robocog/_robocog$suffix"
+  "$PY_VENV/bin/pip" install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
+    --force-reinstall "$ROOT/components/ball_tracker_py"
 }
 
 # The ROS 2 tools the tests read robocog with, as programs outside the project would: mcap,

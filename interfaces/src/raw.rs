@@ -381,6 +381,62 @@ impl Bus {
     }
 }
 
+impl Bus {
+    /// Serve `name`, whose requests are `req_type` and replies `rep_type` known by name only (a
+    /// component in another language): `handler` gets each request's payload as it came and
+    /// returns the reply, encoded with [`encode_reply`] or [`encode_error_reply`]. The fair
+    /// queues, time-outs and liveliness token are [`Bus::serve`]'s.
+    pub async fn raw_serve<F, Fut>(
+        &self,
+        name: &str,
+        req_type: &str,
+        rep_type: &str,
+        handler: F,
+    ) -> Result<crate::bus::ServiceHandle, BusError>
+    where
+        F: Fn(Vec<u8>) -> Fut + Send + Sync + 'static,
+        Fut: std::future::Future<Output = Vec<u8>> + Send + 'static,
+    {
+        if !topic::is_valid_name(name) {
+            return Err(BusError::InvalidName(name.to_string()));
+        }
+        for t in [req_type, rep_type] {
+            if !is_valid_type_name(t) {
+                return Err(BusError::InvalidName(t.to_string()));
+            }
+        }
+        let handler = Arc::new(handler);
+        let answer: crate::bus::service::Answer = Arc::new(move |query| {
+            let handler = handler.clone();
+            Box::pin(async move {
+                let reply = match query.payload() {
+                    Some(p) => handler(p.to_bytes().into_owned()).await,
+                    None => {
+                        encode_error_reply(ServiceError::bad_request("the request has no payload"))
+                    }
+                };
+                let key = query.key_expr().clone();
+                if let Err(e) = query.reply(key, reply).await {
+                    tracing::warn!("could not send a reply: {e}");
+                }
+            })
+        });
+        self.serve_queries(name, req_type, rep_type, answer).await
+    }
+}
+
+/// A service's reply as it goes on the wire: the value, or the typed error.
+pub fn encode_reply<T: Message>(reply: Result<T, ServiceError>) -> Result<Vec<u8>, CodecError> {
+    codec::encode(&WireReply::from(reply), T::TYPE_NAME)
+}
+
+/// An error reply as it goes on the wire (any reply type reads it: the variant, then the error).
+pub fn encode_error_reply(error: ServiceError) -> Vec<u8> {
+    let reply: WireReply<()> = WireReply::Err(error);
+    // A ServiceError is a code and a string: its encoding cannot fail.
+    codec::encode(&reply, "robocog/ServiceError").unwrap_or_default()
+}
+
 /// A service's reply, decoded as far as it can be without knowing the reply type.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RawReply {

@@ -99,9 +99,15 @@ fn run_with_timeout(
     })
 }
 
-/// Ask `binary` for its interface, with a time-out.
-pub fn describe(binary: &Path, args: &[String], timeout: Duration) -> Result<Interface, String> {
-    let ran = run_with_timeout(binary, args, &[], "--describe", timeout)?;
+/// Ask `binary` for its interface (with the component's `env`: a Python component finds its
+/// module through it), with a time-out.
+pub fn describe(
+    binary: &Path,
+    args: &[String],
+    env: &[(String, String)],
+    timeout: Duration,
+) -> Result<Interface, String> {
+    let ran = run_with_timeout(binary, args, env, "--describe", timeout)?;
     if !ran.status.success() {
         return Err(format!(
             "`--describe` failed ({}): {}",
@@ -220,7 +226,15 @@ pub fn check(
                     }
                 ),
             }),
-            Some(path) => match describe(&path, &c.args, Duration::from_secs(10)) {
+            Some(path) => match describe(
+                &path,
+                &c.args,
+                &c.env
+                    .iter()
+                    .map(|(k, v)| (k.clone(), v.clone()))
+                    .collect::<Vec<_>>(),
+                Duration::from_secs(10),
+            ) {
                 Ok(i) => {
                     report.interfaces.insert(c.name.clone(), i);
                 }

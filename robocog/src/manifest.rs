@@ -25,6 +25,9 @@
 //! [[component]]
 //! name = "joint_motor"               # unique in the graph; its name on the bus
 //! binary = "joint_motor"             # next to `robocog`, on PATH, or a path relative to this file
+//! # python = "my_tracker:Tracker"    # instead of binary: a Python component (MODULE[:CLASS]),
+//!                                    # run by $ROBOCOG_PYTHON (default python3) with the
+//!                                    # `robocog` package (libs/python) installed
 //! args = ["--driver", "${robot}"]
 //! env = { RUST_LOG = "info" }
 //! depends_on = ["deep_representation"]  # started once these are up (their liveliness token seen)
@@ -40,7 +43,8 @@
 //!                                    # topics it subscribes to, or services it calls
 //! machine = "robot"                  # with [machines]: where it runs (default, or "": the
 //!                                    # launcher's); variables work here and in the routers
-//! enabled = "${simulate}"            # "true" (default) or "false" after substitution: a profile
+//! enabled = "${simulate}"            # "true" (default) or "false" after substitution, or a
+//!                                    # comparison ("${tracker} == rust", "A != B"): a profile
 //!                                    # can switch a simulator off when real hardware is used;
 //!                                    # two components may share a name if at most one is enabled
 //! ```
@@ -312,17 +316,17 @@ impl Manifest {
                 };
                 let cname = rc.name.get_ref().clone();
                 if let Some(enabled) = &rc.enabled {
-                    match substitute(enabled.get_ref(), &vars).as_deref() {
-                        Ok("true") => {}
-                        Ok("false") => {
+                    match substitute(enabled.get_ref(), &vars).map(|v| truth(&v)) {
+                        Ok(Ok(true)) => {}
+                        Ok(Ok(false)) => {
                             disabled.push((cname, origin.clone()));
                             continue;
                         }
-                        Ok(other) => {
+                        Ok(Err(other)) => {
                             problems.push(Problem {
                                 origin: origin_of(enabled.span()),
                                 message: format!(
-                                    "enabled must be \"true\" or \"false\", got {other:?}"
+                                    "enabled must be \"true\", \"false\" or a comparison \"A == B\" / \"A != B\" after substitution, got {other:?}"
                                 ),
                             });
                             continue;
@@ -353,8 +357,30 @@ impl Manifest {
                     continue;
                 }
                 first_seen.insert(cname.clone(), origin.clone());
-                let binary = sub(rc.binary.get_ref());
-                let args = rc.args.iter().map(|a| sub(a)).collect();
+                // A Python component runs as `<python> -m robocog run MODULE[:CLASS] ARGS...`.
+                let (binary, mut args) = match (&rc.binary, &rc.python) {
+                    (Some(b), None) => (sub(b.get_ref()), Vec::new()),
+                    (None, Some(module)) => (
+                        python_interpreter(),
+                        vec![
+                            "-m".to_string(),
+                            "robocog".to_string(),
+                            "run".to_string(),
+                            sub(module.get_ref()),
+                        ],
+                    ),
+                    (b, _) => {
+                        problems.push(Problem {
+                            origin: origin.clone(),
+                            message: format!(
+                                "component {cname:?}: give `binary` (a program) or `python` (a Python module, `MODULE[:CLASS]`){}",
+                                if b.is_some() { ", not both" } else { "" }
+                            ),
+                        });
+                        continue;
+                    }
+                };
+                args.extend(rc.args.iter().map(|a| sub(a)));
                 let env = rc.env.iter().map(|(k, v)| (k.clone(), sub(v))).collect();
                 let hardware = rc
                     .hardware
@@ -643,6 +669,34 @@ impl Component {
     pub fn resolve_binary(&self) -> Option<PathBuf> {
         resolve_binary(&self.binary, &self.dir)
     }
+}
+
+/// Whether an `enabled` value, after substitution, is on: `true`, `false`, or a comparison of
+/// two words (`python == rust`, `sim != dynamixel`); anything else comes back as the error.
+fn truth(value: &str) -> Result<bool, String> {
+    match value.trim() {
+        "true" => return Ok(true),
+        "false" => return Ok(false),
+        _ => {}
+    }
+    for (op, equal) in [("==", true), ("!=", false)] {
+        if let Some((a, b)) = value.split_once(op) {
+            let (a, b) = (a.trim(), b.trim());
+            if !a.is_empty() && !b.is_empty() && !b.contains(['=', '!']) {
+                return Ok((a == b) == equal);
+            }
+        }
+    }
+    Err(value.to_string())
+}
+
+/// The Python interpreter that runs `python = "..."` components: `ROBOCOG_PYTHON` (a venv's,
+/// with the `robocog` package installed), else `python3`.
+pub fn python_interpreter() -> String {
+    std::env::var("ROBOCOG_PYTHON")
+        .ok()
+        .filter(|p| !p.is_empty())
+        .unwrap_or_else(|| "python3".to_string())
 }
 
 /// See [`Component::resolve_binary`].

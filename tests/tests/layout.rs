@@ -205,6 +205,10 @@ const UNSAFE_ALLOWED: &[(&str, &str)] = &[
     ),
     ("pocketsphinx-sys-min", "PocketSphinx's C API"),
     (
+        "robocog-python",
+        "the buffer protocol: a received frame's bytes lent to NumPy without a copy",
+    ),
+    (
         "robocog",
         "the launcher's pre_exec hook: prctl(PR_SET_PDEATHSIG) in the forked child",
     ),

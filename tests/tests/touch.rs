@@ -713,9 +713,38 @@ async fn an_unreachable_ball_is_explained() {
 /// sends the new tracker the target, the tracker holds the ball again and the game carries on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_tracker_is_restarted_and_the_game_carries_on() {
+    tracker_killed_and_restarted(&[]).await;
+}
+
+/// The same with the Python tracker (components/ball_tracker_py): a Python component killed
+/// mid-game is survived as a Rust one is.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_python_tracker_is_restarted_and_the_game_carries_on() {
+    tracker_killed_and_restarted(&["tracker=python"]).await;
+}
+
+/// Loki's game with the Python ball tracker (OpenCV's CamShift) in place of the Rust one: the
+/// same topics, the same game, a moving ball touched within 3 cm.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn touch_a_moving_ball_with_the_python_tracker() {
+    let game = play("moving", &["tracker=python"], Duration::from_secs(180)).await;
+    check_ok(&game);
+    assert!(
+        game.output
+            .iter()
+            .any(|l| l.contains("started ball_tracker") && l.contains("robocog run")),
+        "the Python tracker did not run"
+    );
+    game.entered_in_order(&["tracking", "reaching", "following", "homing", "finished"])
+        .unwrap_or_else(|e| panic!("{e}\n{game:?}"));
+    let (hand, _) = *game.touches.last().expect("a touch measured");
+    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+}
+
+async fn tracker_killed_and_restarted(sets: &[&str]) {
     let game = play_with(
         "tracker_restart",
-        &[],
+        sets,
         Duration::from_secs(200),
         Some(("person: sees gaze within", "ball_tracker")),
     )

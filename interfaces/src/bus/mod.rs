@@ -48,7 +48,7 @@ use zenoh::shm::{GarbageCollect, PosixShmProviderBackend, ShmProvider, ShmProvid
 mod fair;
 mod publisher;
 mod recent;
-mod service;
+pub(crate) mod service;
 mod subscriber;
 #[cfg(test)]
 #[expect(

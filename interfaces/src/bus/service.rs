@@ -17,7 +17,29 @@ impl Bus {
         F: Fn(Req) -> Fut + Send + Sync + 'static,
         Fut: Future<Output = Result<Rep, ServiceError>> + Send + 'static,
     {
-        let name = service.name();
+        let handler = Arc::new(handler);
+        let bad_requests = self
+            .inner
+            .counters
+            .counter(&format!("bad_requests/{}", service.name()));
+        let answer: Answer = Arc::new(move |query| {
+            let handler = handler.clone();
+            let bad_requests = bad_requests.clone();
+            Box::pin(async move { answer(query, handler.as_ref(), &bad_requests).await })
+        });
+        self.serve_queries(service.name(), Req::TYPE_NAME, Rep::TYPE_NAME, answer)
+            .await
+    }
+
+    /// Serve `name` with `answer`, which replies to each query: the fair queues, the time-outs
+    /// of callers that gave up and the liveliness token of [`Bus::serve`], for any codec.
+    pub(crate) async fn serve_queries(
+        &self,
+        name: &str,
+        req_type: &str,
+        rep_type: &str,
+        answer: Answer,
+    ) -> Result<ServiceHandle, BusError> {
         let key = topic::service_key(self.namespace(), name);
         let queryable = self
             .inner
@@ -30,13 +52,11 @@ impl Bus {
             .token(liveliness::service_key(
                 self.namespace(),
                 self.component(),
-                Req::TYPE_NAME,
-                Rep::TYPE_NAME,
+                req_type,
+                rep_type,
                 name,
             ))
             .await?;
-        let handler = Arc::new(handler);
-        let bad_requests = self.inner.counters.counter(&format!("bad_requests/{name}"));
         let counters = self.inner.counters.clone();
         let service = name.to_string();
         let task = tokio::spawn(async move {
@@ -64,11 +84,10 @@ impl Bus {
                             counters.incr(&format!("service_expired/{service}/{caller}"));
                             continue;
                         }
-                        let handler = handler.clone();
-                        let bad_requests = bad_requests.clone();
+                        let answer = answer.clone();
                         tokio::spawn(async move {
                             let _slot = slot;
-                            answer(query, handler.as_ref(), &bad_requests).await;
+                            answer(query).await;
                         });
                     }
                 }
@@ -159,6 +178,11 @@ impl Bus {
     }
 }
 
+/// What replies to one query of a served service (see [`Bus::serve_queries`]).
+pub(crate) type Answer = Arc<
+    dyn Fn(zenoh::query::Query) -> std::pin::Pin<Box<dyn Future<Output = ()> + Send>> + Send + Sync,
+>;
+
 /// How many requests of one service are handled at once.
 pub(super) const MAX_IN_FLIGHT: usize = 16;
 /// How many requests of one caller may wait for a service; past it, the caller is told the
@@ -183,15 +207,11 @@ fn caller_of(query: &zenoh::query::Query) -> (String, i64) {
 
 /// Tells a caller past its share that the service is busy.
 async fn refuse_busy(query: &zenoh::query::Query, caller: &str) {
-    let reply: WireReply<()> = WireReply::Err(ServiceError::refused(format!(
+    let bytes = crate::raw::encode_error_reply(ServiceError::refused(format!(
         "busy: {caller} already has {PER_CALLER_QUEUE} requests waiting for this service"
     )));
-    // The reply's type is the caller's to decode: an error carries no value, so any
-    // reply type reads it (the variant index, then the error).
-    if let Ok(bytes) = codec::encode(&reply, "robocog/ServiceError") {
-        let key = query.key_expr().clone();
-        let _ = query.reply(key, bytes).await;
-    }
+    let key = query.key_expr().clone();
+    let _ = query.reply(key, bytes).await;
 }
 
 /// Decodes `query`, hands it to `handler` and sends the reply (a `BadRequest` for a request

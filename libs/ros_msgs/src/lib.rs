@@ -18,6 +18,7 @@ pub mod hash;
 pub mod json;
 pub mod msgdef;
 pub mod probe;
+pub mod python;
 
 use interfaces::msg::{Message, TypeVisitor};
 use msgdef::{MsgDef, PACKAGE, full_name, package_of, reference};

@@ -37,11 +37,19 @@ pub enum Verb {
         #[arg(value_name = "DIR")]
         dir: PathBuf,
     },
+    /// Print the Python classes of every message type (the source of `python/robocog/msg.py`).
+    Python,
 }
 
 pub fn execute(args: Args) -> anyhow::Result<i32> {
     let defs = ros_msgs::definitions();
     match args.verb {
+        Verb::Python => {
+            let src = ros_msgs::python::module()
+                .map_err(|why| anyhow::anyhow!("no Python form: {why}"))?;
+            out!("{src}");
+            Ok(0)
+        }
         Verb::List { json } => {
             if json {
                 let all: Vec<serde_json::Value> = defs

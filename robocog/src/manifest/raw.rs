@@ -60,7 +60,8 @@ fn default_stop_timeout_s() -> f64 {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawComponent {
     pub(super) name: Spanned<String>,
-    pub(super) binary: Spanned<String>,
+    pub(super) binary: Option<Spanned<String>>,
+    pub(super) python: Option<Spanned<String>>,
     #[serde(default)]
     pub(super) args: Vec<String>,
     #[serde(default)]

@@ -128,3 +128,60 @@ fn a_bus_off_the_host_is_secured_or_said_insecure() {
     .to_string();
     assert!(e.contains("not udp/"), "{e}");
 }
+
+#[test]
+fn a_python_component_runs_as_its_module_under_the_python_interpreter() {
+    let m = load(
+        r#"
+[[component]]
+name = "tracker"
+python = "my_tracker:Tracker"
+args = ["--hue", "3"]
+"#,
+    )
+    .unwrap();
+    let c = &m.components[0];
+    assert_eq!(c.binary, python_interpreter());
+    assert_eq!(
+        c.args,
+        ["-m", "robocog", "run", "my_tracker:Tracker", "--hue", "3"]
+    );
+    for (text, why) in [
+        ("binary = \"a\"\npython = \"b\"", "not both"),
+        ("", "give `binary` (a program) or `python`"),
+    ] {
+        let e = load(&format!("[[component]]\nname = \"x\"\n{text}\n")).unwrap_err();
+        assert!(e.to_string().contains(why), "{e}");
+    }
+}
+
+#[test]
+fn enabled_is_true_false_or_a_comparison_after_substitution() {
+    let graph = |tracker: &str| {
+        let text = format!(
+            r#"
+[vars]
+tracker = "{tracker}"
+[[component]]
+name = "tracker"
+binary = "ball_tracker"
+enabled = "${{tracker}} == rust"
+[[component]]
+name = "tracker"
+python = "robocog_ball_tracker"
+enabled = "${{tracker}} != rust"
+"#
+        );
+        load(&text)
+    };
+    let rust = graph("rust").unwrap();
+    assert_eq!(rust.components.len(), 1);
+    assert_eq!(rust.components[0].binary, "ball_tracker");
+    let python = graph("python").unwrap();
+    assert_eq!(python.components[0].args[3], "robocog_ball_tracker");
+    assert_eq!(truth(" a == a "), Ok(true));
+    assert_eq!(truth("a != a"), Ok(false));
+    for bad in ["yes", "a ==", "== b", "a == b == c", "a = b"] {
+        assert_eq!(truth(bad), Err(bad.to_string()), "{bad}");
+    }
+}
