@@ -55,10 +55,25 @@ pub fn definitions() -> &'static Definitions {
     DEFS.get_or_init(Definitions::make)
 }
 
-struct Collect {
-    catalog: Catalog,
-    roots: Vec<(&'static str, Result<String, String>)>,
+/// The walk of every type of this build: the named types met, each type's root (its message's
+/// name, or why it has none) and its ROS 2 view.
+pub(crate) struct Collect {
+    pub(crate) catalog: Catalog,
+    pub(crate) roots: Vec<(&'static str, Result<String, String>)>,
     views: BTreeMap<&'static str, RosView>,
+}
+
+impl Collect {
+    /// Walk every type of the registry.
+    pub(crate) fn run() -> Collect {
+        let mut collect = Collect {
+            catalog: Catalog::default(),
+            roots: Vec::new(),
+            views: BTreeMap::new(),
+        };
+        interfaces::msg::visit_types(&mut collect);
+        collect
+    }
 }
 
 impl TypeVisitor for Collect {
@@ -80,12 +95,7 @@ impl TypeVisitor for Collect {
 
 impl Definitions {
     fn make() -> Definitions {
-        let mut collect = Collect {
-            catalog: Catalog::default(),
-            roots: Vec::new(),
-            views: BTreeMap::new(),
-        };
-        interfaces::msg::visit_types(&mut collect);
+        let collect = Collect::run();
         let mut writer = msgdef::Writer::new(&collect.catalog);
         let by_type = collect
             .roots

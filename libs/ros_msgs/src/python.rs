@@ -14,8 +14,7 @@
 //!
 //! Every field has a default (zero, empty, the first variant), so `JointStates()` is a message.
 
-use crate::probe::{self, Catalog, Container, Shape, Variant};
-use interfaces::msg::{Message, TypeVisitor};
+use crate::probe::{Catalog, Container, Shape, Variant};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -27,34 +26,10 @@ const KEYWORDS: &[&str] = &[
     "with", "yield",
 ];
 
-struct Collect {
-    catalog: Catalog,
-    roots: Vec<(&'static str, Result<String, String>)>,
-}
-
-impl TypeVisitor for Collect {
-    fn visit<T: Message>(&mut self) {
-        let mut catalog = self.catalog.clone();
-        let root = match probe::describe::<T>(&mut catalog) {
-            Ok(Shape::Named(name)) => {
-                self.catalog = catalog;
-                Ok(name)
-            }
-            Ok(other) => Err(format!("it is not a struct ({other:?})")),
-            Err(e) => Err(e.to_string()),
-        };
-        self.roots.push((T::TYPE_NAME, root));
-    }
-}
-
 /// The source of `robocog/msg.py` for this build's message types; `Err` names a type that has
 /// no Python form, and why.
 pub fn module() -> Result<String, String> {
-    let mut collect = Collect {
-        catalog: Catalog::default(),
-        roots: Vec::new(),
-    };
-    interfaces::msg::visit_types(&mut collect);
+    let collect = crate::Collect::run();
     let mut roots = BTreeMap::new();
     for (ty, root) in collect.roots {
         roots.insert(ty, root.map_err(|why| format!("{ty}: {why}"))?);
