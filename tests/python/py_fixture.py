@@ -1,6 +1,7 @@
 """A Python component for the suite (tests/tests/python.rs): answers on the bus as the tests ask.
 
-- `py/in` (Text): publishes the text upper-cased on `py/out`; "boom" raises in the callback.
+- `py/in` (Text): publishes the text upper-cased on `py/out`; "boom" raises in the callback;
+  "starts" answers how many times the component started with this state folder.
 - `py/upper` (Text -> Text): the text upper-cased; an empty text is refused (BadRequest).
 - with `--frames`: for each of the first frames on `vision/rgbd`, a report on `py/out` (JSON) of
   what the NumPy views of its images are: shape, whether they own or borrow their memory, and
@@ -8,6 +9,7 @@
 """
 
 import json
+import os
 
 import robocog
 from robocog import images, msg
@@ -39,12 +41,24 @@ class Fixture(Component):
         node.subscribe("py/in", msg.Text, self.on_text)
         node.serve("py/upper", msg.Text, msg.Text, self.upper)
         self.reported = 0
+        # How many times it started, kept in its state folder across restarts.
+        self.starts = 1
+        if node.state_dir is not None:
+            path = node.state_dir / "starts"
+            if path.exists():
+                self.starts = int(path.read_text()) + 1
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(str(self.starts))
+            os.replace(tmp, path)
         if args.frames:
             node.subscribe("vision/rgbd", msg.RgbdFrame, self.on_frame, queue=2)
 
     def on_text(self, m):
         if m.text == "boom":
             raise RuntimeError("boom, as asked")
+        if m.text == "starts":
+            self.out.publish(msg.Text(text=f"STARTS {self.starts}"))
+            return
         self.out.publish(msg.Text(text=self.prefix + m.text.upper()))
 
     def upper(self, req):

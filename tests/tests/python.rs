@@ -106,10 +106,17 @@ async fn a_python_component_is_on_the_bus_like_a_rust_one() {
     let info = String::from_utf8_lossy(&info.stdout).to_string();
     assert!(info.contains("py_fixture"), "topic info py/in:\n{info}");
 
-    // Messages both ways, and a service with its typed refusal.
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    input.publish(&mut say("hello")).await.unwrap();
-    wait_answer(&answers, 0, "HELLO").await;
+    // Messages both ways (said again until the subscription has reached the router), and a
+    // service with its typed refusal.
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    while !answers.all().iter().any(|m| m.text == "HELLO") {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no answer to hello in 30 s"
+        );
+        input.publish(&mut say("hello")).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
     let rep = bus
         .call(&PY_UPPER, &say("abc"), Duration::from_secs(5))
         .await
@@ -142,7 +149,7 @@ async fn a_python_component_is_on_the_bus_like_a_rust_one() {
         d.component == "py_fixture" && d.counters.iter().any(|c| c.name == name && c.value >= 1)
     };
     diagnostics
-        .wait_from("decode_errors/py/in", 0, Duration::from_secs(10), |d| {
+        .wait_from("decode_errors/py/in", 0, Duration::from_secs(20), |d| {
             counted(d, "decode_errors/py/in")
         })
         .await;
@@ -150,7 +157,7 @@ async fn a_python_component_is_on_the_bus_like_a_rust_one() {
         .wait_from(
             "callback_errors/subscription/py/in",
             0,
-            Duration::from_secs(10),
+            Duration::from_secs(20),
             |d| counted(d, "callback_errors/subscription/py/in"),
         )
         .await;
@@ -177,6 +184,10 @@ async fn a_python_component_is_on_the_bus_like_a_rust_one() {
         Some(pid),
         "the answer came from the killed process"
     );
+    // Its state folder is the one it had: it counts its second start there.
+    let from = answers.len();
+    input.publish(&mut say("starts")).await.unwrap();
+    wait_answer(&answers, from, "STARTS 2").await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

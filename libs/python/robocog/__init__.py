@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
+import pathlib
 import traceback
 from typing import Any, Callable
 
@@ -149,6 +151,18 @@ class Node:
     @property
     def namespace(self) -> str:
         return self._node.namespace
+
+    @property
+    def state_dir(self) -> pathlib.Path | None:
+        """The component's state folder, kept across its restarts (the launcher gives it as
+        `ROBOCOG_STATE_DIR`), made if missing; None when not launched. Write it atomically (a
+        temporary file, then `os.replace`)."""
+        d = os.environ.get("ROBOCOG_STATE_DIR")
+        if not d:
+            return None
+        path = pathlib.Path(d)
+        path.mkdir(parents=True, exist_ok=True)
+        return path
 
     def now_ns(self) -> int:
         """The node's time in ns since the epoch (the bus clock under `--clock bus`)."""
