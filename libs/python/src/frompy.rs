@@ -35,13 +35,36 @@ impl From<PyErr> for Error {
 
 /// `obj` as a `T`.
 pub fn from_py<T: de::DeserializeOwned>(obj: &Bound<'_, PyAny>) -> Result<T, Error> {
-    // Every object met is kept here while the message is read, so its text and bytes are lent
-    // to the message's deserializer (wire forms borrow them) rather than copied twice.
-    let arena = Arena::new();
+    let arena = Arena::default();
     T::deserialize(FromPy { obj, arena: &arena })
 }
 
-type Arena<'py> = typed_arena::Arena<Bound<'py, PyAny>>;
+/// `obj` as a view of a `T` that borrows its byte blocks from the Python objects (a NumPy
+/// array's memory, a `bytes`' own), handed to `f`: a frame is read straight from Python's
+/// buffers into the publisher's shared memory. The buffers are read while `f` runs.
+pub fn with_view<T: interfaces::msg::Borrowable, R>(
+    obj: &Bound<'_, PyAny>,
+    f: impl FnOnce(&mut T::View<'_>) -> R,
+) -> Result<R, Error> {
+    let arena = Arena::default();
+    let mut view = <T::View<'_> as de::Deserialize>::deserialize(FromPy { obj, arena: &arena })?;
+    Ok(f(&mut view))
+}
+
+/// What is kept while a message is read, so that its text and bytes are lent to the message's
+/// deserializer (wire forms and views borrow them) rather than copied: every object met, and
+/// the buffers (the buffer protocol) of byte blocks that are not `bytes`.
+#[derive(Default)]
+struct Arena<'py> {
+    objects: typed_arena::Arena<Bound<'py, PyAny>>,
+    buffers: typed_arena::Arena<pyo3::buffer::PyBuffer<u8>>,
+}
+
+impl<'py> Arena<'py> {
+    fn alloc(&self, obj: Bound<'py, PyAny>) -> &Bound<'py, PyAny> {
+        self.objects.alloc(obj)
+    }
+}
 
 struct FromPy<'de, 'py> {
     obj: &'de Bound<'py, PyAny>,
@@ -173,22 +196,32 @@ impl<'de, 'py> de::Deserializer<'de> for FromPy<'de, 'py> {
         if let Ok(b) = self.obj.cast::<PyBytes>() {
             return visitor.visit_borrowed_bytes(b.as_bytes());
         }
-        // A bytearray, memoryview or NumPy array: its bytes, copied once.
-        let bytes = self
-            .obj
-            .py()
+        // A bytearray, memoryview or NumPy array: its memory, through the buffer protocol, as
+        // bytes (a memoryview cast to unsigned bytes, which any C-contiguous buffer allows).
+        let py = self.obj.py();
+        let not_bytes = || {
+            Error(format!(
+                "expected bytes (or a C-contiguous buffer: bytearray, memoryview, NumPy array), found {}",
+                type_of(self.obj)
+            ))
+        };
+        let view = py
             .import("builtins")?
-            .getattr("bytes")?
-            .call1((&self.obj,))
-            .map_err(|_| {
-                Error(format!(
-                    "expected bytes (or a buffer: bytearray, memoryview, NumPy array), found {}",
-                    type_of(self.obj)
-                ))
-            })?;
-        let b = self.child(bytes);
-        let b = b.obj.cast::<PyBytes>().map_err(|e| Error(e.to_string()))?;
-        visitor.visit_borrowed_bytes(b.as_bytes())
+            .getattr("memoryview")?
+            .call1((self.obj,))
+            .and_then(|m| m.call_method1("cast", ("B",)))
+            .map_err(|_| not_bytes())?;
+        let buffer = pyo3::buffer::PyBuffer::<u8>::get(&view).map_err(|_| not_bytes())?;
+        if !buffer.is_c_contiguous() {
+            return Err(not_bytes());
+        }
+        let buffer: &'de pyo3::buffer::PyBuffer<u8> = self.arena.buffers.alloc(buffer);
+        // SAFETY: the exporter keeps this memory, unmoved, while the buffer is held, and the
+        // arena holds it for all of 'de; it is C-contiguous, `len_bytes` long.
+        let bytes: &'de [u8] = unsafe {
+            std::slice::from_raw_parts(buffer.buf_ptr() as *const u8, buffer.len_bytes())
+        };
+        visitor.visit_borrowed_bytes(bytes)
     }
 
     fn deserialize_byte_buf<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {

@@ -46,6 +46,36 @@ impl<T: Message> AnyPublisher for Publisher<T> {
     }
 }
 
+/// A publisher of a type whose byte blocks are read in place from Python's buffers
+/// ([`crate::frompy::with_view`]): a frame's pixels go from the NumPy arrays straight into the
+/// shared-memory sample, one copy.
+struct ViewPublisher<T: Borrowable>(Publisher<T>);
+
+impl<T: Borrowable> AnyPublisher for ViewPublisher<T> {
+    fn publish(
+        &self,
+        py: Python<'_>,
+        msg: &Bound<'_, PyAny>,
+        rt: &tokio::runtime::Handle,
+    ) -> PyResult<()> {
+        crate::frompy::with_view::<T, _>(msg, |view| {
+            py.detach(|| rt.block_on(self.0.publish_view(view)))
+        })
+        .map_err(|e| PyValueError::new_err(format!("this is not a {}: {e}", T::TYPE_NAME)))?
+        .map_err(crate::bus_error)
+    }
+}
+
+fn view_publisher<T: Borrowable>(
+    bus: Bus,
+    topic: String,
+) -> BoxFuture<Result<Box<dyn AnyPublisher>, BusError>> {
+    Box::pin(async move {
+        let p = bus.publisher_named::<T>(&topic).await?;
+        Ok(Box::new(ViewPublisher(p)) as Box<dyn AnyPublisher>)
+    })
+}
+
 /// One message type's functions.
 #[derive(Clone, Copy)]
 pub struct Ops {
@@ -76,9 +106,10 @@ pub fn ops(name: &str) -> PyResult<&'static Ops> {
         .get_or_init(|| {
             let mut t = Table(HashMap::new());
             interfaces::msg::visit_types(&mut t);
-            // Frames are lent to Python, not copied.
+            // Frames are lent to Python, and read from Python's buffers, not copied.
             if let Some(o) = t.0.get_mut(RgbdFrame::TYPE_NAME) {
                 o.subscribe = subscribe_borrowed::<RgbdFrame>;
+                o.publisher = view_publisher::<RgbdFrame>;
             }
             t.0
         })
