@@ -66,6 +66,13 @@ impl<T: Borrowable> AnyPublisher for ViewPublisher<T> {
     }
 }
 
+/// [`encode`] for a type whose byte blocks are read in place from Python's buffers.
+fn encode_view<T: Borrowable>(msg: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
+    crate::frompy::with_view::<T, _>(msg, |view| codec::encode(&*view, T::TYPE_NAME))
+        .map_err(|e| PyValueError::new_err(format!("this is not a {}: {e}", T::TYPE_NAME)))?
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
 fn view_publisher<T: Borrowable>(
     bus: Bus,
     topic: String,
@@ -110,6 +117,7 @@ pub fn ops(name: &str) -> PyResult<&'static Ops> {
             if let Some(o) = t.0.get_mut(RgbdFrame::TYPE_NAME) {
                 o.subscribe = subscribe_borrowed::<RgbdFrame>;
                 o.publisher = view_publisher::<RgbdFrame>;
+                o.encode = encode_view::<RgbdFrame>;
             }
             t.0
         })
