@@ -336,7 +336,12 @@ args = ["--role", "idle"]
         t,
     );
     assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("enabled must be \"true\" or \"false\""));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("enabled must be \"true\", \"false\" or a comparison")
+            && err.contains("got \"maybe\""),
+        "{err}"
+    );
 
     assert_rejected(
         r#"[[component]]

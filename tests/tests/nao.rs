@@ -42,7 +42,9 @@ async fn commands_reach_the_simulated_robot_and_its_world_comes_back() {
     let truth = bus.subscriber(&topics::SIM_FIELD_TRUTH).await.unwrap();
     let links = bus.subscriber(&topics::NAO_LINK).await.unwrap();
     let diag = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
-    let t = Duration::from_secs(10);
+    // Event waits, generous for a machine that runs other work beside the suite (the field and
+    // the bridge start together, and the first packets may be sent before the bridge listens).
+    let t = Duration::from_secs(30);
 
     // Both robots' debug packets are fused into the team model.
     let deadline = tokio::time::Instant::now() + t;

@@ -204,7 +204,10 @@ class BusSideTest(unittest.TestCase):
         self.assertFalse(dr.should_update(track, 0.95))
         bad = msg.Transform(msg.Vector3(float("nan"), 0.0, 0.0), msg.Quaternion(0.0, 0.0, 0.0, 1.0))
         self.assertIsNone(dr.isometry(bad))
-        self.assertIsNone(dr.isometry(msg.Transform()))
+        # A zero quaternion is no rotation; the default one is the identity (as in ROS 2).
+        self.assertIsNone(dr.isometry(msg.Transform(rotation=msg.Quaternion(0.0, 0.0, 0.0, 0.0))))
+        rot, t = dr.isometry(msg.Transform())
+        np.testing.assert_allclose(rot, np.eye(3))
 
 
 def _quaternion(m):

@@ -205,7 +205,7 @@ class Quaternion:
     x: float = 0.0
     y: float = 0.0
     z: float = 0.0
-    w: float = 0.0
+    w: float = 1.0
 
 @dataclasses.dataclass
 class Transform:

@@ -12,7 +12,8 @@
 //!   one-entry `dict` from the variant's name to its value;
 //! - a newtype struct is its field's type.
 //!
-//! Every field has a default (zero, empty, the first variant), so `JointStates()` is a message.
+//! Every field has a default (zero, empty, the first variant; a quaternion's `w` is 1, as ROS 2
+//! defines it), so `JointStates()` is a message.
 
 use crate::probe::{Catalog, Container, Shape, Variant};
 use std::collections::BTreeMap;
@@ -119,6 +120,10 @@ fn define(
                 out.push_str("    pass\n");
             }
             for (field, shape) in fields {
+                if let Some(value) = ros_default(name, field) {
+                    let _ = writeln!(out, "    {field}: {} = {value}", hint(catalog, shape));
+                    continue;
+                }
                 if KEYWORDS.contains(&field.as_str()) {
                     return Err(format!(
                         "{py}.{field} is a Python keyword: no attribute can be named so"
@@ -152,6 +157,15 @@ fn define(
     }
     done.push(name.to_string());
     Ok(())
+}
+
+/// A default that ROS 2's own definition of a standard message gives a field (rclpy's too), where
+/// it is not the zero: a quaternion is the identity rotation.
+fn ros_default(message: &str, field: &str) -> Option<&'static str> {
+    match (message, field) {
+        ("geometry_msgs/msg/Quaternion", "w") => Some("1.0"),
+        _ => None,
+    }
 }
 
 /// The named types a container's definition refers to.
