@@ -15,6 +15,16 @@
 //! acceleration limit, so each joint may reach its maximum velocity in `--accel-time-s`.
 //! With `--driver dynamixel`, only the joints mapped in `--servo-config` are driven.
 //!
+//! The Stewart neck: when the URDF declares one (`<robocog_stewart_neck>`), its pitch, roll and
+//! yaw joints are driven through the platform's three legs ([`crate::neck::NeckDriver`]): the
+//! goal angles become leg lengths (inverse kinematics), and the published angles come from the
+//! measured lengths (forward kinematics), so the head's pose, and the camera's, is the one the
+//! legs give. `--driver sim` simulates the legs; `--driver dynamixel` drives them when the servo
+//! map names them (prismatic, `m_per_rad`), or the three joints as servos of their own when it
+//! names those. A goal whose legs would leave their stroke is clamped to the nearest reachable
+//! pose, counted on `diagnostics` (`neck/clamped`) and logged. An inconsistent platform (the home
+//! pose out of the stroke, an axis unobservable) stops the component at start, naming why.
+//!
 //! Time: the drivers run on the process's monotonic clock (seconds since start); messages carry
 //! the bus clock.
 
@@ -33,8 +43,10 @@ use robot_model::{JointKind as UrdfKind, RobotModel};
 use crate::bus::{self, Request};
 use crate::driver::JointDriver;
 use crate::home::Home;
+use crate::neck::NeckPlan;
 use crate::ownership::JointMotor;
 use crate::sim::{SimDriver, SimParams};
+use crate::stewart::NeckAngles;
 use crate::types::{JointCommand, JointGoal, JointRelease, JointSpec, JointTarget};
 
 /// The component's flags.
@@ -128,7 +140,11 @@ pub fn specs_from_model(model: &RobotModel, accel_time_s: f64) -> anyhow::Result
 /// The client name of the start-posture move (dynamixel).
 pub const HOME_CLIENT: &str = "joint_motor/home";
 
-fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointDriver>> {
+fn open(
+    config: &Config,
+    specs: Vec<JointSpec>,
+    neck: Option<&NeckPlan>,
+) -> anyhow::Result<Box<dyn JointDriver>> {
     match config.driver.as_str() {
         "sim" => {
             let params = match &config.sim_config {
@@ -146,43 +162,92 @@ fn open(config: &Config, specs: Vec<JointSpec>) -> anyhow::Result<Box<dyn JointD
                     k.len()
                 );
             }
-            // Each joint where it was kept (within its limits), else at the start posture.
-            let start: Option<Vec<f64>> = specs
+            // Each joint where it was kept (within its limits), else at the start posture,
+            // else at 0 (within its limits).
+            let start_of = |s: &JointSpec| {
+                kept.as_ref()
+                    .and_then(|k| k.get(&s.name))
+                    .copied()
+                    .filter(|q| (s.lower..=s.upper).contains(q))
+                    .or_else(|| config.home.position(&s.name, s.lower, s.upper))
+                    .unwrap_or_else(|| 0.0_f64.clamp(s.lower, s.upper))
+            };
+            let Some(neck) = neck else {
+                let start: Vec<f64> = specs.iter().map(start_of).collect();
+                return Ok(Box::new(SimDriver::new_at(specs, params, &start)?));
+            };
+            // A simulated platform: its legs start at the lengths of the neck's start pose.
+            let [pitch, roll, yaw] = neck.axes.clone().map(|a| start_of(&a));
+            let lengths = neck.leg_lengths(NeckAngles { pitch, roll, yaw })?;
+            let inner = neck.inner_specs(&specs);
+            let start: Vec<f64> = inner
                 .iter()
-                .map(|s| {
-                    kept.as_ref()
-                        .and_then(|k| k.get(&s.name))
-                        .copied()
-                        .filter(|q| (s.lower..=s.upper).contains(q))
-                        .or_else(|| config.home.position(&s.name, s.lower, s.upper))
+                .map(|s| match neck.legs.iter().position(|l| l.name == s.name) {
+                    Some(k) => lengths[k],
+                    None => start_of(s),
                 })
                 .collect();
-            Ok(match start {
-                Some(start) => Box::new(SimDriver::new_at(specs, params, &start)?),
-                None => Box::new(SimDriver::new(specs, params)?),
-            })
+            let sim = SimDriver::new_at(inner, params, &start)?;
+            tracing::info!(
+                "the neck is a simulated Stewart platform: {}, {} and {} move its legs {}, {} and {}",
+                neck.axes[0].name,
+                neck.axes[1].name,
+                neck.axes[2].name,
+                neck.legs[0].name,
+                neck.legs[1].name,
+                neck.legs[2].name
+            );
+            Ok(Box::new(neck.wrap(Box::new(sim))?))
         }
         "dynamixel" => {
             let path = config.servo_config.as_ref().with_context(|| {
                 format!("--driver dynamixel needs --servo-config <file.toml> (Loki's: {EXAMPLE_SERVO_MAP})")
             })?;
-            let (specs, mut cfg) = load_servo_map(path, specs)?;
+            let offered = match neck {
+                Some(n) => specs
+                    .iter()
+                    .cloned()
+                    .chain(n.legs.iter().cloned())
+                    .collect(),
+                None => specs,
+            };
+            let (specs, mut cfg) = load_servo_map(path, offered)?;
             if let Some(port) = &config.port {
                 cfg.port.clone_from(port);
             }
+            // The neck's legs mapped: the platform is driven through them; else its pitch, roll
+            // and yaw, if mapped, are servos of their own.
+            let platform = match neck {
+                Some(n) => {
+                    let legs = specs.iter().filter(|s| n.is_leg(&s.name)).count();
+                    let axes = specs.iter().filter(|s| n.is_axis(&s.name)).count();
+                    anyhow::ensure!(
+                        legs == 0 || (legs == 3 && axes == 0),
+                        "{}: the servo map names {legs} of the neck's 3 legs and {axes} of its pitch, roll and yaw joints: map the three legs (a Stewart neck) or the joints (a neck of three servos), not both",
+                        path.display()
+                    );
+                    (legs == 3).then_some(n)
+                }
+                None => None,
+            };
             let serial = crate::dynamixel::SerialPort::open(&cfg.port, cfg.baud)
                 .with_context(|| format!("opening the servo line {}", cfg.port))?;
             tracing::info!(
                 port = %cfg.port,
                 baud = cfg.baud,
                 joints = specs.len(),
+                stewart_neck = platform.is_some(),
                 "connecting to the servos"
             );
-            Ok(Box::new(crate::dynamixel::DynamixelDriver::new(
+            let servos = Box::new(crate::dynamixel::DynamixelDriver::new(
                 specs,
                 cfg,
                 Box::new(serial),
-            )?))
+            )?);
+            Ok(match platform {
+                Some(n) => Box::new(n.wrap(servos)?),
+                None => servos,
+            })
         }
         other => anyhow::bail!("unknown driver `{other}` (known: sim, dynamixel)"),
     }
@@ -217,7 +282,13 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     let model = RobotModel::from_urdf_file(&urdf)
         .with_context(|| format!("loading the robot model {}", urdf.display()))?;
     let specs = specs_from_model(&model, config.accel_time_s)?;
-    let driver = open(&config, specs)?;
+    let neck = NeckPlan::from_model(&model, &specs, config.accel_time_s).with_context(|| {
+        format!(
+            "the neck platform of {} (its <robocog_stewart_neck> element)",
+            urdf.display()
+        )
+    })?;
+    let driver = open(&config, specs, neck.as_ref())?;
     Ok(Prepared {
         config,
         urdf,
@@ -368,10 +439,27 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         ("sim", Some(dir)) => Some(crate::kept::Keeper::new(dir)),
         _ => None,
     };
+    // The driver's own counters (the neck's clamped goals) and what it has to tell, each second.
+    let mut report = bus.clock().interval(Duration::from_secs(1));
     loop {
         tokio::select! {
             biased;
             _ = shutdown.wait() => break,
+            _ = report.tick() => {
+                let (totals, warnings) = match motor.lock() {
+                    Ok(mut m) => {
+                        let d = m.driver_mut();
+                        (d.counters(), d.take_warnings())
+                    }
+                    Err(_) => anyhow::bail!("the joint motor lock is poisoned"),
+                };
+                for (name, total) in totals {
+                    counters.counter(name).store(total, std::sync::atomic::Ordering::Relaxed);
+                }
+                for w in warnings {
+                    tracing::warn!("{w}");
+                }
+            }
             _ = tick.tick() => {
                 let read = match motor.lock() {
                     Ok(mut m) => m.states(now_s()),
@@ -479,16 +567,27 @@ mod tests {
 
     #[test]
     fn the_example_servo_map_drives_lokis_neck_and_arms() {
-        let specs = specs_from_model(&loki(), 0.25).unwrap();
+        // As `open` offers them: the URDF's joints and the Stewart neck's legs.
+        let (specs, plan) = loki_neck();
+        let offered = specs.into_iter().chain(plan.legs.iter().cloned()).collect();
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../..")
             .join(EXAMPLE_SERVO_MAP);
-        let (driven, cfg) = load_servo_map(&path, specs).unwrap();
+        let (driven, cfg) = load_servo_map(&path, offered).unwrap();
         let names: Vec<&str> = driven.iter().map(|s| s.name.as_str()).collect();
         assert_eq!(driven.len(), 18, "{names:?}");
-        for j in ["neck_pitch", "neck_yaw", "left_elbow", "right_wrist_roll"] {
+        for j in [
+            "neck_rotation",
+            "neck_leg_2",
+            "left_elbow",
+            "right_wrist_roll",
+        ] {
             assert!(names.contains(&j), "{j} is not driven: {names:?}");
         }
+        assert!(
+            !names.iter().any(|n| plan.is_axis(n)),
+            "the neck goes through its legs"
+        );
         assert_eq!((cfg.port.as_str(), cfg.baud), ("/dev/ttyUSB0", 1_000_000));
         // A missing map names the example.
         let err =
@@ -542,15 +641,139 @@ mod tests {
             "--port",
             path.to_str().unwrap(),
         ]);
-        let driver = open(&c, specs.clone()).unwrap();
+        let driver = open(&c, specs.clone(), None).unwrap();
         assert_eq!(driver.name(), "dynamixel");
         let names: Vec<&str> = driver.joints().iter().map(|s| s.name.as_str()).collect();
         assert_eq!(names, ["neck_pitch", "neck_yaw"]);
         assert_eq!(chain.torque(1), Some(true), "servo 1 was set up");
         // Without --servo-config: a clear error.
         let c = config(&["--driver", "dynamixel"]);
-        let e = open(&c, specs).err().unwrap().to_string();
+        let e = open(&c, specs, None).err().unwrap().to_string();
         assert!(e.contains("--servo-config"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    fn loki_neck() -> (Vec<JointSpec>, NeckPlan) {
+        let specs = specs_from_model(&loki(), 0.25).unwrap();
+        let plan = NeckPlan::from_model(&loki(), &specs, 0.25)
+            .unwrap()
+            .unwrap();
+        (specs, plan)
+    }
+
+    #[test]
+    fn the_simulated_neck_is_a_stewart_platform_at_the_start_posture() {
+        let (specs, plan) = loki_neck();
+        let c = config(&[]);
+        let mut driver = open(&c, specs.clone(), Some(&plan)).unwrap();
+        let names: Vec<&str> = driver.joints().iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            names.len(),
+            specs.len(),
+            "the legs are not joints of the bus"
+        );
+        assert!(
+            !names.iter().any(|n| n.starts_with("neck_leg")),
+            "{names:?}"
+        );
+        assert!(names.contains(&"neck_pitch") && names.contains(&"neck_rotation"));
+        // The rest posture's pitch, read back through the legs' forward kinematics.
+        let states = driver.read_state(0.0).unwrap();
+        let pitch = states.iter().find(|s| s.name == "neck_pitch").unwrap();
+        assert!((pitch.position - 0.30).abs() < 1e-6, "{pitch:?}");
+        let mut motor = JointMotor::new(driver, 1.0).unwrap();
+        let goal = JointGoal {
+            client: "gaze".into(),
+            priority: 0,
+            targets: vec![JointTarget {
+                joint: "neck_yaw".into(),
+                command: JointCommand::Position {
+                    position: -0.5,
+                    max_speed: 1.0,
+                },
+            }],
+        };
+        motor.submit(&goal, 0.0).unwrap();
+        let s = motor.states(3.0).unwrap();
+        assert!((s.get("neck_yaw").unwrap().position + 0.5).abs() < 1e-5);
+        assert!((s.get("neck_pitch").unwrap().position - 0.30).abs() < 1e-5);
+        assert_eq!(motor.driver().counters(), [("neck/clamped", 0)]);
+    }
+
+    #[test]
+    fn the_dynamixel_driver_moves_the_neck_through_its_legs() {
+        use crate::dynamixel::reg;
+        use crate::servo_sim::{Faults, ServoChain};
+        let (chain, path) =
+            ServoChain::spawn_on_pty_path(&[1, 2, 3, 4], Faults::default(), 5).unwrap();
+        let dir = std::env::temp_dir().join(format!("joint_motor-legs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let leg = |k: usize, id: u8| {
+            format!("[joints.neck_leg_{k}]\nid = {id}\nm_per_rad = 0.04\noffset_rad = -2.9\n")
+        };
+        let legs = format!("{}{}{}", leg(0, 2), leg(1, 3), leg(2, 4));
+        let map = dir.join("servos.toml");
+        std::fs::write(
+            &map,
+            format!(
+                "port = \"{}\"\nbaud = 57600\n[joints.neck_rotation]\nid = 1\n{legs}",
+                path.display()
+            ),
+        )
+        .unwrap();
+        let (specs, plan) = loki_neck();
+        let c = config(&[
+            "--driver",
+            "dynamixel",
+            "--servo-config",
+            map.to_str().unwrap(),
+        ]);
+        let mut driver = open(&c, specs.clone(), Some(&plan)).unwrap();
+        let names: Vec<&str> = driver.joints().iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["neck_rotation", "neck_pitch", "neck_roll", "neck_yaw"]
+        );
+        let target = |joint: &str, position: f64| JointTarget {
+            joint: joint.into(),
+            command: JointCommand::Position {
+                position,
+                max_speed: 1.0,
+            },
+        };
+        driver
+            .command(&[target("neck_pitch", 0.2), target("neck_yaw", 0.3)], 0.0)
+            .unwrap();
+        // A read on the same line answers after the servos have taken the goals.
+        driver.read_state(0.1).unwrap();
+        // Each leg's servo was sent the length of that pose, through its lead screw.
+        let lengths = plan
+            .geometry
+            .inverse(NeckAngles {
+                pitch: 0.2,
+                roll: 0.0,
+                yaw: 0.3,
+            })
+            .unwrap();
+        for (k, id) in [2u8, 3, 4].into_iter().enumerate() {
+            let want = crate::dynamixel::units::rad_to_ticks(lengths[k] / 0.04 - 2.9);
+            assert_eq!(
+                chain.register(id, reg::GOAL_POSITION),
+                Some(want),
+                "leg {k}"
+            );
+        }
+        // Mapping the legs and the joints they stand for at once is refused.
+        std::fs::write(
+            &map,
+            format!(
+                "port = \"{}\"\nbaud = 57600\n[joints.neck_pitch]\nid = 1\n{legs}",
+                path.display()
+            ),
+        )
+        .unwrap();
+        let e = open(&c, specs, Some(&plan)).err().unwrap().to_string();
+        assert!(e.contains("not both"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

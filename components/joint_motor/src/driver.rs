@@ -22,6 +22,16 @@ pub trait JointDriver: Send {
     fn link_stats(&self) -> LinkStats {
         LinkStats::default()
     }
+    /// The driver's own event counters since it opened, as `(name, total)` (the component
+    /// publishes them on `diagnostics`): e.g. the neck's goals clamped into its reach.
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
+    /// What happened since the last call that a person should read in the log (the component
+    /// logs each line, paced).
+    fn take_warnings(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A target checked against its joint's spec: the joint's index and the command.

@@ -10,13 +10,17 @@
 //!   the slowest axis needs at its max speed (never above a leg's `max_velocity`), so the head
 //!   moves roughly straight in angle space. The hard speed and acceleration limits are the
 //!   legs'; the axes' speeds follow from them and match the goal's max speed only
-//!   approximately (the `sim` test measures a 0.5 % excess on pitch). A pose whose legs would
-//!   leave their stroke is refused ([`JointError::Neck`]).
+//!   approximately (the `sim` test measures a 0.5 % excess on pitch).
+//! - A goal within the axes' limits whose legs would leave their stroke (a corner of the angle
+//!   box the platform cannot reach) is clamped to the nearest reachable pose
+//!   ([`NeckGeometry::nearest_reachable`]), counted (`neck/clamped` in
+//!   [`JointDriver::counters`]) and told in [`JointDriver::take_warnings`]; the goal is
+//!   accepted, and the measured angles show where the head went.
 //! - States: angles by Newton from the measured leg lengths; angle rates `J⁻¹ · l̇`.
 
 use crate::driver::{JointDriver, check_targets};
 use crate::error::JointError;
-use crate::stewart::{NeckAngles, NeckGeometry};
+use crate::stewart::{NeckAngles, NeckError, NeckGeometry};
 use crate::types::{JointCommand, JointSpec, JointState, JointTarget, LinkStats};
 
 /// Names and limits of the neck's virtual joints and of the legs in the inner driver.
@@ -46,6 +50,9 @@ pub struct NeckDriver {
     /// Last measured pose (for leg timing), and the current goal.
     measured: Option<NeckAngles>,
     goal: Option<NeckAngles>,
+    /// Goals clamped into the platform's reach, and the last one (asked, given) not yet told.
+    clamped: u64,
+    last_clamp: Option<(NeckAngles, NeckAngles)>,
 }
 
 impl std::fmt::Debug for NeckDriver {
@@ -59,15 +66,35 @@ impl std::fmt::Debug for NeckDriver {
 }
 
 impl NeckDriver {
-    /// Wraps `inner`, whose joints must include `names.legs` (prismatic).
+    /// Wraps `inner`, whose joints must include `names.legs` (prismatic); the axes' limits are
+    /// ± the geometry's maxima.
     pub fn new(
         inner: Box<dyn JointDriver>,
         geometry: NeckGeometry,
         names: &NeckJoints,
     ) -> Result<Self, JointError> {
+        let axes = [
+            (&names.pitch, geometry.max_pitch_rad),
+            (&names.roll, geometry.max_roll_rad),
+            (&names.yaw, geometry.max_yaw_rad),
+        ]
+        .map(|(name, max)| {
+            JointSpec::revolute(name, -max, max, names.max_velocity, names.max_acceleration)
+        });
+        Self::with_axes(inner, geometry, &names.legs, axes)
+    }
+
+    /// Wraps `inner`, whose joints must include `legs` (prismatic), presenting the pitch, roll
+    /// and yaw joints `axes` (their limits within the geometry's).
+    pub fn with_axes(
+        inner: Box<dyn JointDriver>,
+        geometry: NeckGeometry,
+        leg_names: &[String; 3],
+        axes: [JointSpec; 3],
+    ) -> Result<Self, JointError> {
         let inner_specs = inner.joints();
         let mut legs = [0; 3];
-        for (k, leg) in names.legs.iter().enumerate() {
+        for (k, leg) in leg_names.iter().enumerate() {
             legs[k] = inner_specs
                 .iter()
                 .position(|s| &s.name == leg)
@@ -82,19 +109,22 @@ impl NeckDriver {
             .iter()
             .map(|&i| inner_specs[i].clone())
             .collect();
-        for (name, max) in [
-            (&names.pitch, geometry.max_pitch_rad),
-            (&names.roll, geometry.max_roll_rad),
-            (&names.yaw, geometry.max_yaw_rad),
-        ] {
-            specs.push(JointSpec::revolute(
-                name,
-                -max,
-                max,
-                names.max_velocity,
-                names.max_acceleration,
-            ));
+        for (axis, max) in axes.iter().zip([
+            geometry.max_pitch_rad,
+            geometry.max_roll_rad,
+            geometry.max_yaw_rad,
+        ]) {
+            if axis.lower < -max || axis.upper > max {
+                return Err(JointError::config(
+                    format!("joints.{}", axis.name),
+                    format!(
+                        "limits {}..{} rad beyond the neck platform's ±{max} rad",
+                        axis.lower, axis.upper
+                    ),
+                ));
+            }
         }
+        specs.extend(axes);
         crate::driver::check_specs(&specs)?;
         Ok(Self {
             inner,
@@ -104,6 +134,8 @@ impl NeckDriver {
             passthrough,
             measured: None,
             goal: None,
+            clamped: 0,
+            last_clamp: None,
         })
     }
 
@@ -174,7 +206,21 @@ impl JointDriver for NeckDriver {
                 set_axis(&mut goal, k, position);
                 duration_s = duration_s.max((position - axis(&current, k)).abs() / max_speed);
             }
-            let lengths = self.geometry.inverse(goal)?;
+            let lengths = match self.geometry.inverse(goal) {
+                Ok(l) => l,
+                Err(NeckError::LengthOutOfRange { .. }) => {
+                    let asked = goal;
+                    goal = self.geometry.nearest_reachable(asked).ok_or_else(|| {
+                        JointError::Neck(NeckError::Inconsistent(
+                            "the home pose is out of the legs' stroke".into(),
+                        ))
+                    })?;
+                    self.clamped += 1;
+                    self.last_clamp = Some((asked, goal));
+                    self.geometry.inverse(goal)?
+                }
+                Err(e) => return Err(e.into()),
+            };
             let now_lengths = self.geometry.inverse(current).ok();
             for (k, &leg) in self.legs.iter().enumerate() {
                 let spec = &self.inner.joints()[leg];
@@ -230,6 +276,118 @@ impl JointDriver for NeckDriver {
 
     fn link_stats(&self) -> LinkStats {
         self.inner.link_stats()
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let mut c = self.inner.counters();
+        c.push(("neck/clamped", self.clamped));
+        c
+    }
+
+    fn take_warnings(&mut self) -> Vec<String> {
+        let mut w = self.inner.take_warnings();
+        if let Some((asked, given)) = self.last_clamp.take() {
+            w.push(format!(
+                "the neck cannot reach pitch {:.3}, roll {:.3}, yaw {:.3} rad (its legs would leave their stroke): went to pitch {:.3}, roll {:.3}, yaw {:.3} rad instead ({} goals clamped so far)",
+                asked.pitch, asked.roll, asked.yaw, given.pitch, given.roll, given.yaw, self.clamped
+            ));
+        }
+        w
+    }
+}
+
+/// The neck of a URDF that declares a Stewart platform (`<robocog_stewart_neck>`): its geometry,
+/// the pitch, roll and yaw joints the platform is presented as (the URDF's joints, with their
+/// limits), and the three legs the driver underneath moves.
+#[derive(Debug, Clone)]
+pub struct NeckPlan {
+    pub geometry: NeckGeometry,
+    /// Pitch, roll and yaw, as the [`NeckDriver`] presents them.
+    pub axes: [JointSpec; 3],
+    /// The legs: prismatic joints of the driver underneath (stroke, top speed, and that speed
+    /// reached in `accel_time_s`).
+    pub legs: [JointSpec; 3],
+}
+
+impl NeckPlan {
+    /// The plan for `model`'s platform; `None` when it declares none (its neck joints are then
+    /// driven as they are). `specs` are the model's joints as the driver would get them.
+    /// Errors: the platform's geometry is inconsistent, or an axis is not among `specs`.
+    pub fn from_model(
+        model: &robot_model::RobotModel,
+        specs: &[JointSpec],
+        accel_time_s: f64,
+    ) -> Result<Option<Self>, JointError> {
+        let Some(spec) = &model.stewart_neck else {
+            return Ok(None);
+        };
+        let axis = |name: &String| {
+            specs
+                .iter()
+                .find(|s| &s.name == name)
+                .cloned()
+                .ok_or_else(|| JointError::UnknownJoint(name.clone()))
+        };
+        let axes = [axis(&spec.pitch)?, axis(&spec.roll)?, axis(&spec.yaw)?];
+        let limits = [0, 1, 2].map(|k| (axes[k].lower, axes[k].upper));
+        let geometry = NeckGeometry::from_spec(spec, limits)?;
+        let legs = spec.legs.clone().map(|name| {
+            JointSpec::prismatic(
+                &name,
+                spec.min_length_m,
+                spec.max_length_m,
+                spec.leg_velocity_m_s,
+                spec.leg_velocity_m_s / accel_time_s,
+            )
+        });
+        Ok(Some(Self {
+            geometry,
+            axes,
+            legs,
+        }))
+    }
+
+    /// The joints of the driver underneath: `specs` without the axes, with the legs.
+    pub fn inner_specs(&self, specs: &[JointSpec]) -> Vec<JointSpec> {
+        specs
+            .iter()
+            .filter(|s| !self.is_axis(&s.name))
+            .cloned()
+            .chain(self.legs.iter().cloned())
+            .collect()
+    }
+
+    /// Whether `joint` is the platform's pitch, roll or yaw.
+    pub fn is_axis(&self, joint: &str) -> bool {
+        self.axes.iter().any(|a| a.name == joint)
+    }
+
+    /// Whether `joint` is one of the legs.
+    pub fn is_leg(&self, joint: &str) -> bool {
+        self.legs.iter().any(|l| l.name == joint)
+    }
+
+    /// The legs' lengths (m) for the reachable pose nearest `angles` (each clamped into its
+    /// axis' limits first).
+    pub fn leg_lengths(&self, angles: NeckAngles) -> Result<[f64; 3], JointError> {
+        let clamp = |k: usize, v: f64| v.clamp(self.axes[k].lower, self.axes[k].upper);
+        let a = NeckAngles {
+            pitch: clamp(0, angles.pitch),
+            roll: clamp(1, angles.roll),
+            yaw: clamp(2, angles.yaw),
+        };
+        let near = self.geometry.nearest_reachable(a).ok_or_else(|| {
+            JointError::Neck(NeckError::Inconsistent(
+                "the home pose is out of the legs' stroke".into(),
+            ))
+        })?;
+        Ok(self.geometry.inverse(near)?)
+    }
+
+    /// `inner` (whose joints include the legs) presented with the axes instead of the legs.
+    pub fn wrap(&self, inner: Box<dyn JointDriver>) -> Result<NeckDriver, JointError> {
+        let names = self.legs.clone().map(|l| l.name);
+        NeckDriver::with_axes(inner, self.geometry, &names, self.axes.clone())
     }
 }
 
@@ -334,6 +492,75 @@ mod tests {
             (s[1].position - 0.3).abs() < 1e-5 && s[3].position.abs() < 1e-5,
             "{s:?}"
         );
+    }
+
+    #[test]
+    fn a_goal_beyond_the_stroke_is_clamped_counted_and_told() {
+        // Loki's platform (models/loki.urdf) and its URDF joints' asymmetric pitch limits.
+        let g = NeckGeometry {
+            base_radius_m: 0.07,
+            platform_radius_m: 0.05,
+            pivot_height_m: 0.10,
+            twist_rad: 60f64.to_radians(),
+            max_pitch_rad: 0.6,
+            max_roll_rad: 0.4,
+            max_yaw_rad: 0.8,
+            min_length_m: 0.080,
+            max_length_m: 0.155,
+        };
+        let legs = ["l0", "l1", "l2"].map(String::from);
+        let home = g.inverse(NeckAngles::HOME).unwrap();
+        let leg_specs = legs
+            .iter()
+            .map(|n| JointSpec::prismatic(n, g.min_length_m, g.max_length_m, 0.1, 0.4))
+            .collect();
+        let sim = SimDriver::new_at(leg_specs, SimParams::default(), &home).unwrap();
+        let axes = [("p", -0.5, 0.6), ("r", -0.4, 0.4), ("y", -0.8, 0.8)]
+            .map(|(n, lo, hi)| JointSpec::revolute(n, lo, hi, 1.5, 6.0));
+        let mut n = NeckDriver::with_axes(Box::new(sim), g, &legs, axes).unwrap();
+        assert_eq!(
+            n.joints()[0].lower,
+            -0.5,
+            "the joints keep the URDF's own limits"
+        );
+        let e = n.command(&[pos("p", -0.55, 1.0)], 0.0).unwrap_err();
+        assert!(matches!(e, JointError::OutOfLimits { .. }), "{e}");
+        let far = NeckAngles {
+            pitch: -0.5,
+            roll: -0.4,
+            yaw: -0.8,
+        };
+        n.command(
+            &[
+                pos("p", far.pitch, 1.0),
+                pos("r", far.roll, 1.0),
+                pos("y", far.yaw, 1.0),
+            ],
+            0.0,
+        )
+        .unwrap();
+        let s = n.read_state(10.0).unwrap();
+        let near = g.nearest_reachable(far).unwrap();
+        for (state, want) in s.iter().zip([near.pitch, near.roll, near.yaw]) {
+            assert!((state.position - want).abs() < 1e-5, "{s:?} vs {near:?}");
+        }
+        assert!(
+            (s[2].position - far.yaw).abs() > 0.01,
+            "the goal was clamped: {s:?}"
+        );
+        assert_eq!(n.counters(), [("neck/clamped", 1)]);
+        let told = n.take_warnings();
+        assert_eq!(told.len(), 1);
+        assert!(
+            told[0].contains("cannot reach pitch -0.500, roll -0.400, yaw -0.800"),
+            "{told:?}"
+        );
+        assert!(n.take_warnings().is_empty(), "told once");
+        // A reachable goal is not clamped.
+        n.command(&[pos("r", 0.0, 1.0)], 10.0).unwrap();
+        assert_eq!(n.counters(), [("neck/clamped", 1)]);
+        let s = n.read_state(20.0).unwrap();
+        assert!(s[1].position.abs() < 1e-5, "{s:?}");
     }
 
     #[test]

@@ -164,6 +164,11 @@ impl JointMotor {
         self.driver.as_ref()
     }
 
+    /// The driver inside, to read its counters and warnings.
+    pub fn driver_mut(&mut self) -> &mut dyn JointDriver {
+        self.driver.as_mut()
+    }
+
     /// The lease table.
     pub fn arbiter(&self) -> &Arbiter {
         &self.arbiter

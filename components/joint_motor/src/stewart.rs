@@ -30,7 +30,13 @@ pub struct NeckAngles {
 }
 
 impl NeckAngles {
-    #[cfg(test)]
+    /// Head straight ahead: all angles 0.
+    pub const HOME: Self = Self {
+        pitch: 0.0,
+        roll: 0.0,
+        yaw: 0.0,
+    };
+
     fn to_vector(self) -> Vector3<f64> {
         Vector3::new(self.pitch, self.roll, self.yaw)
     }
@@ -62,6 +68,8 @@ pub enum NeckError {
     },
     #[error("neck forward kinematics did not converge (residual {residual_m} m)")]
     NoConvergence { residual_m: f64 },
+    #[error("the neck platform's geometry is inconsistent: {0}")]
+    Inconsistent(String),
 }
 
 /// Dimensions and limits of the neck (see the module docs for the geometry).
@@ -121,6 +129,180 @@ impl NeckGeometry {
 
     fn pivot(&self) -> Vector3<f64> {
         Vector3::new(0.0, 0.0, self.pivot_height_m)
+    }
+
+    /// The geometry of a URDF's `<robocog_stewart_neck>`, with the angle limits of its pitch, roll
+    /// and yaw joints (`[lower, upper]` each; the platform's limits are the largest of the two
+    /// magnitudes, the joints keep their own). Checked with [`NeckGeometry::check_consistent`].
+    pub fn from_spec(
+        spec: &robot_model::StewartNeckSpec,
+        limits: [(f64, f64); 3],
+    ) -> Result<Self, NeckError> {
+        let max = |(lo, hi): (f64, f64)| lo.abs().max(hi.abs());
+        let g = Self {
+            base_radius_m: spec.base_radius_m,
+            platform_radius_m: spec.platform_radius_m,
+            pivot_height_m: spec.pivot_height_m,
+            twist_rad: spec.twist_rad,
+            max_pitch_rad: max(limits[0]),
+            max_roll_rad: max(limits[1]),
+            max_yaw_rad: max(limits[2]),
+            min_length_m: spec.min_length_m,
+            max_length_m: spec.max_length_m,
+        };
+        g.check_consistent()?;
+        Ok(g)
+    }
+
+    /// Checks that the platform can be driven: positive finite dimensions, the home pose (all
+    /// angles 0) within the legs' stroke, and the three axes observable there (the legs'
+    /// Jacobian well conditioned; a twist of 0 makes yaw unobservable).
+    pub fn check_consistent(&self) -> Result<(), NeckError> {
+        let bad = |what: String| Err(NeckError::Inconsistent(what));
+        for (name, v) in [
+            ("base_radius_m", self.base_radius_m),
+            ("platform_radius_m", self.platform_radius_m),
+            ("pivot_height_m", self.pivot_height_m),
+            ("min_length_m", self.min_length_m),
+            ("max_length_m", self.max_length_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{name} must be finite and > 0, got {v}"));
+            }
+        }
+        if self.min_length_m >= self.max_length_m {
+            return bad(format!(
+                "the stroke {}..{} m is empty",
+                self.min_length_m, self.max_length_m
+            ));
+        }
+        let (l, units) = self.legs(NeckAngles::HOME);
+        if self.check_lengths(&l).is_err() {
+            return bad(format!(
+                "at the home pose the legs are {:.4} m, outside the stroke {}..{} m",
+                l[0], self.min_length_m, self.max_length_m
+            ));
+        }
+        let sv = self.jacobian(NeckAngles::HOME, &units).singular_values();
+        let (lo, hi) = (sv.min(), sv.max());
+        if lo.is_nan() || lo <= 1e-3 * hi {
+            return bad(format!(
+                "pitch, roll and yaw cannot all be told apart from the legs at the home pose (twist {:.1}°; singular values {lo:.2e}..{hi:.2e})",
+                self.twist_rad.to_degrees()
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether `a` is within the angle limits and its legs within their stroke.
+    pub fn reachable(&self, a: NeckAngles) -> bool {
+        self.check_angles(a).is_ok() && self.check_lengths(&self.legs(a).0).is_ok()
+    }
+
+    /// The reachable pose nearest `goal` (which must be within the angle limits), in angle
+    /// space: `goal` itself if its legs are within their stroke; else the last reachable pose on
+    /// the segment from home to `goal` (bisection), slid along the stroke's boundary towards
+    /// `goal` (gradient projection: the step towards `goal` less its part across the legs at
+    /// their limits, then Newton back onto those limits) while that brings it nearer. `None` if
+    /// the home pose itself is out of reach (an inconsistent geometry).
+    pub fn nearest_reachable(&self, goal: NeckAngles) -> Option<NeckAngles> {
+        if self.reachable(goal) {
+            return Some(goal);
+        }
+        if !self.reachable(NeckAngles::HOME) {
+            return None;
+        }
+        let g = goal.to_vector();
+        // The last reachable point from `from` (reachable) towards `to`.
+        let along = |from: Vector3<f64>, to: Vector3<f64>| {
+            let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+            for _ in 0..50 {
+                let mid = 0.5 * (lo + hi);
+                if self.reachable(NeckAngles::from_vector(from + (to - from) * mid)) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            from + (to - from) * lo
+        };
+        let radial = along(Vector3::zeros(), g);
+        let slid = self.slide_towards(radial, g);
+        let best = if self.reachable(NeckAngles::from_vector(slid))
+            && (slid - g).norm() < (radial - g).norm()
+        {
+            slid
+        } else {
+            radial
+        };
+        Some(NeckAngles::from_vector(best))
+    }
+
+    /// From `x` (reachable, on the stroke's boundary), slides along the boundary towards `g`
+    /// while the distance to `g` shrinks (see [`NeckGeometry::nearest_reachable`]).
+    fn slide_towards(&self, mut x: Vector3<f64>, g: Vector3<f64>) -> Vector3<f64> {
+        // Legs at a limit, and the length each is held at (a hair inside the stroke).
+        let active = |x: Vector3<f64>, d: Vector3<f64>| {
+            let a = NeckAngles::from_vector(x);
+            let (l, units) = self.legs(a);
+            let j = self.jacobian(a, &units);
+            let mut rows: Vec<(usize, f64)> = Vec::with_capacity(3);
+            for (i, &li) in l.iter().enumerate() {
+                let rate = j.row(i).transpose().dot(&d);
+                if li >= self.max_length_m - 1e-8 && rate > 0.0 {
+                    rows.push((i, self.max_length_m - 1e-10));
+                } else if li <= self.min_length_m + 1e-8 && rate < 0.0 {
+                    rows.push((i, self.min_length_m + 1e-10));
+                }
+            }
+            (rows, j)
+        };
+        let mut step = 1.0_f64;
+        for _ in 0..200 {
+            let d = g - x;
+            let (rows, j) = active(x, d);
+            if rows.is_empty() || rows.len() >= 3 {
+                break;
+            }
+            let n = nalgebra::DMatrix::from_fn(rows.len(), 3, |r, c| j[(rows[r].0, c)]);
+            let Some(inv) = (&n * n.transpose()).try_inverse() else {
+                break;
+            };
+            let dv = nalgebra::DVector::from_column_slice(d.as_slice());
+            let across = n.transpose() * (inv * (&n * &dv));
+            let tangent = Vector3::new(d[0] - across[0], d[1] - across[1], d[2] - across[2]);
+            if tangent.norm() < 1e-9 {
+                break; // the step towards the goal is all across the limits: nearest
+            }
+            // A step along the boundary, then Newton back onto the active legs' limits.
+            let mut y = x + tangent * step;
+            for _ in 0..4 {
+                let a = NeckAngles::from_vector(y);
+                let (l, units) = self.legs(a);
+                let jy = self.jacobian(a, &units);
+                let ny = nalgebra::DMatrix::from_fn(rows.len(), 3, |r, c| jy[(rows[r].0, c)]);
+                let Some(inv) = (&ny * ny.transpose()).try_inverse() else {
+                    break;
+                };
+                let resid = nalgebra::DVector::from_iterator(
+                    rows.len(),
+                    rows.iter().map(|&(i, b)| b - l[i]),
+                );
+                let fix = ny.transpose() * (inv * resid);
+                y += Vector3::new(fix[0], fix[1], fix[2]);
+            }
+            if self.reachable(NeckAngles::from_vector(y)) && (y - g).norm() < (x - g).norm() - 1e-12
+            {
+                x = y;
+                step = (step * 2.0).min(1.0);
+            } else {
+                step *= 0.5;
+                if step < 1e-6 {
+                    break;
+                }
+            }
+        }
+        x
     }
 
     /// Checks the angles against the limits.
@@ -438,6 +620,109 @@ mod tests {
             let change = (0..3).map(|i| (l[i] - home[i]).abs()).fold(0.0, f64::max);
             assert!(change > 1e-3, "{a:?} moves legs by only {change} m");
         }
+    }
+
+    /// Loki's neck (models/loki.urdf): a 60° twist, legs 80–155 mm, the URDF's angle box.
+    fn loki() -> NeckGeometry {
+        let model = robot_model::RobotModel::from_urdf_file(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/loki.urdf"
+        ))
+        .unwrap();
+        let spec = model.stewart_neck.clone().unwrap();
+        let limits = [&spec.pitch, &spec.roll, &spec.yaw].map(|j| {
+            let l = model.joint(j).unwrap().limits;
+            (l.lower, l.upper)
+        });
+        NeckGeometry::from_spec(&spec, limits).unwrap()
+    }
+
+    #[test]
+    fn lokis_neck_reaches_its_joints_box_at_zero_roll_and_clamps_the_far_corners() {
+        let g = loki();
+        assert!((g.max_pitch_rad - 0.6).abs() < 1e-12 && (g.max_yaw_rad - 0.8).abs() < 1e-12);
+        let (mut inside, mut outside) = (0, 0);
+        for a in grid(&g, 9) {
+            if a.pitch < -0.5 {
+                continue; // beyond neck_pitch's lower limit
+            }
+            if a.roll == 0.0 {
+                assert!(g.reachable(a), "{a:?}");
+            }
+            let near = g.nearest_reachable(a).unwrap();
+            assert!(g.reachable(near), "{a:?} -> {near:?}");
+            if g.reachable(a) {
+                assert_eq!(near, a);
+                inside += 1;
+            } else {
+                outside += 1;
+                // Never further than the plain radial clamp, and on the stroke's boundary.
+                let l = g.legs(near).0;
+                let edge = l
+                    .iter()
+                    .map(|x| (x - g.min_length_m).abs().min((x - g.max_length_m).abs()))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(edge < 1e-6, "{near:?} legs {l:?}");
+            }
+        }
+        assert!(
+            outside > 0 && outside * 20 < inside,
+            "{inside} in, {outside} out"
+        );
+    }
+
+    #[test]
+    fn the_clamp_keeps_what_the_stroke_allows_of_each_axis() {
+        let g = loki();
+        // Far in pitch, roll and yaw at once: out of the stroke.
+        let goal = NeckAngles {
+            pitch: -0.5,
+            roll: -0.4,
+            yaw: -0.8,
+        };
+        assert!(!g.reachable(goal));
+        let near = g.nearest_reachable(goal).unwrap();
+        let radial = {
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if g.reachable(NeckAngles::from_vector(goal.to_vector() * mid)) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            NeckAngles::from_vector(goal.to_vector() * lo)
+        };
+        let d = |a: NeckAngles| (a.to_vector() - goal.to_vector()).norm();
+        assert!(d(near) < d(radial) - 1e-3, "{near:?} vs radial {radial:?}");
+        eprintln!(
+            "neck clamp of {goal:?}: {:.4} rad from the goal (radial clamp {:.4})",
+            d(near),
+            d(radial)
+        );
+    }
+
+    #[test]
+    fn inconsistent_geometries_are_named() {
+        let mut g = loki();
+        g.twist_rad = 0.0;
+        let e = g.check_consistent().unwrap_err().to_string();
+        assert!(e.contains("cannot all be told apart"), "{e}");
+        let mut g = loki();
+        g.max_length_m = 0.1;
+        let e = g.check_consistent().unwrap_err().to_string();
+        assert!(e.contains("at the home pose the legs are"), "{e}");
+        assert_eq!(
+            g.nearest_reachable(NeckAngles {
+                pitch: 0.3,
+                ..NeckAngles::HOME
+            }),
+            None
+        );
+        let mut g = loki();
+        g.pivot_height_m = f64::NAN;
+        assert!(g.check_consistent().is_err());
     }
 
     #[test]

@@ -211,6 +211,33 @@ impl JointModel {
     }
 }
 
+/// A neck built as a Stewart platform, from the URDF's `<robocog_stewart_neck>` element: the
+/// head turns about a central pivot, moved by three prismatic legs. The URDF models the neck as
+/// three virtual revolute joints (`pitch`, `roll`, `yaw`); the legs are the actuators, not joints
+/// of the tree. `joint_motor::stewart` has the geometry (anchor circles, twist) and the
+/// kinematics. Lengths in m, angles in rad, speeds in m/s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StewartNeckSpec {
+    /// The virtual joints the platform's pose is read as.
+    pub pitch: String,
+    pub roll: String,
+    pub yaw: String,
+    /// The legs' names (anchors at 90°, 210°, 330° on the base circle).
+    pub legs: [String; 3],
+    pub base_radius_m: f64,
+    pub platform_radius_m: f64,
+    /// Height of the central pivot above the base plate.
+    pub pivot_height_m: f64,
+    /// Angular offset of the platform anchors from the base anchors (the attribute is in
+    /// degrees, `twist_deg`).
+    pub twist_rad: f64,
+    /// The legs' stroke.
+    pub min_length_m: f64,
+    pub max_length_m: f64,
+    /// The legs' top speed.
+    pub leg_velocity_m_s: f64,
+}
+
 /// A robot model: links, joints, cameras, loaded from URDF.
 #[derive(Debug, Clone)]
 pub struct RobotModel {
@@ -224,6 +251,9 @@ pub struct RobotModel {
     pub root: usize,
     /// Cameras declared with `<robocog_camera>` elements.
     pub cameras: Vec<CameraIntrinsics>,
+    /// The neck's Stewart platform, declared with a `<robocog_stewart_neck>` element (none: the
+    /// neck's joints are ideal joints).
+    pub stewart_neck: Option<StewartNeckSpec>,
     link_index: HashMap<String, usize>,
     joint_index: HashMap<String, usize>,
 }
@@ -408,12 +438,14 @@ impl RobotModel {
                 )));
             }
         }
+        let stewart_neck = parse_stewart_neck(text, &joints)?;
         Ok(Self {
             name: robot.name,
             links,
             joints,
             root,
             cameras,
+            stewart_neck,
             link_index,
             joint_index,
         })

@@ -10,9 +10,15 @@
 //! id = 1                    # servo id, 0..=252, unique
 //! sign = 1                  # +1 or -1: servo angle = sign · joint angle + offset_rad
 //! offset_rad = 0.0          # servo angle (rad, 0 = tick 2048) at joint angle 0, |offset| ≤ π
+//!
+//! [joints.neck_leg_0]       # a prismatic joint (here a leg of the Stewart neck)
+//! id = 2
+//! m_per_rad = 0.008         # metres of travel per radian of the servo (lead screw, crank)
+//! offset_rad = -2.0         # servo angle = sign · length / m_per_rad + offset_rad
 //! ```
 //! Every joint of the driver must be mapped, to a rotary servo, and its whole position range
-//! must fit the servo's 0..=4095 ticks. Errors name the offending key.
+//! must fit the servo's 0..=4095 ticks. A prismatic joint needs `m_per_rad` (a servo turning a
+//! lead screw or a crank); a revolute joint must not have one. Errors name the offending key.
 
 use std::collections::BTreeMap;
 
@@ -32,6 +38,9 @@ pub struct ServoMapping {
     pub sign: i8,
     #[serde(default)]
     pub offset_rad: f64,
+    /// Prismatic joints: metres of travel per radian of the servo.
+    #[serde(default)]
+    pub m_per_rad: Option<f64>,
 }
 
 fn one() -> i8 {
@@ -39,14 +48,24 @@ fn one() -> i8 {
 }
 
 impl ServoMapping {
-    /// Servo angle (rad, 0 at tick 2048) for a joint angle (rad).
-    pub fn servo_rad(&self, joint_rad: f64) -> f64 {
-        f64::from(self.sign) * joint_rad + self.offset_rad
+    /// Joint units (rad or m) per servo radian: 1 for a revolute joint.
+    fn scale(&self) -> f64 {
+        self.m_per_rad.unwrap_or(1.0)
     }
 
-    /// Joint angle (rad) for a servo angle (rad).
+    /// Servo angle (rad, 0 at tick 2048) for a joint position (rad, or m for a prismatic joint).
+    pub fn servo_rad(&self, joint: f64) -> f64 {
+        f64::from(self.sign) * joint / self.scale() + self.offset_rad
+    }
+
+    /// Joint position (rad, or m) for a servo angle (rad).
     pub fn joint_rad(&self, servo_rad: f64) -> f64 {
-        f64::from(self.sign) * (servo_rad - self.offset_rad)
+        f64::from(self.sign) * (servo_rad - self.offset_rad) * self.scale()
+    }
+
+    /// Servo speed (rad/s, or rad/s²) for a joint speed (rad/s or m/s, or their rates).
+    pub fn servo_rate(&self, joint_rate: f64) -> f64 {
+        joint_rate / self.scale()
     }
 }
 
@@ -130,18 +149,40 @@ impl DynamixelConfig {
                     "must be finite, |offset| ≤ π",
                 ));
             }
-            if spec.kind != JointKind::Revolute {
-                return Err(JointError::config(
-                    key,
-                    "X-series servos move revolute joints only",
-                ));
+            match (spec.kind, m.m_per_rad) {
+                (JointKind::Revolute, None) => {}
+                (JointKind::Revolute, Some(_)) => {
+                    return Err(JointError::config(
+                        format!("{key}.m_per_rad"),
+                        "only for a prismatic joint",
+                    ));
+                }
+                (JointKind::Prismatic, Some(k)) if k.is_finite() && k > 0.0 => {}
+                (JointKind::Prismatic, Some(_)) => {
+                    return Err(JointError::config(
+                        format!("{key}.m_per_rad"),
+                        "must be finite and > 0",
+                    ));
+                }
+                (JointKind::Prismatic, None) => {
+                    return Err(JointError::config(
+                        key,
+                        "a prismatic joint needs m_per_rad (metres per servo radian)",
+                    ));
+                }
+                _ => {
+                    return Err(JointError::config(
+                        key,
+                        "X-series servos move revolute and prismatic joints only",
+                    ));
+                }
             }
             for limit in [spec.lower, spec.upper] {
                 let t = rad_to_ticks(m.servo_rad(limit));
                 if !(0..=4095).contains(&t) {
                     return Err(JointError::config(
                         key,
-                        format!("joint limit {limit} rad is servo tick {t}, outside 0..=4095"),
+                        format!("joint limit {limit} is servo tick {t}, outside 0..=4095"),
                     ));
                 }
             }
@@ -194,6 +235,31 @@ offset_rad = 0.1
         assert_eq!((m.id, m.sign), (2, -1));
         assert!((m.joint_rad(m.servo_rad(0.3)) - 0.3).abs() < 1e-15);
         assert!((m.servo_rad(0.3) - (-0.2)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_prismatic_leg_is_a_servo_turning_a_lead_screw() {
+        let specs = vec![JointSpec::prismatic("leg", 0.08, 0.155, 0.1, 0.4)];
+        let text = "port = \"/dev/ttyUSB0\"\nbaud = 1000000\n[joints.leg]\nid = 5\n";
+        let key = |t: &str| match DynamixelConfig::from_toml(t, &specs) {
+            Err(JointError::Config { key, reason }) => format!("{key}: {reason}"),
+            other => panic!("expected a config error, got {other:?}"),
+        };
+        assert!(key(text).contains("needs m_per_rad"), "{}", key(text));
+        assert!(key(&format!("{text}m_per_rad = -0.01\n")).starts_with("joints.leg.m_per_rad"));
+        // 0.155 m at 0.01 m/rad is 15.5 rad: more than a turn of the servo.
+        assert!(key(&format!("{text}m_per_rad = 0.01\n")).contains("outside 0..=4095"));
+        let c = DynamixelConfig::from_toml(
+            &format!("{text}m_per_rad = 0.04\noffset_rad = -2.9\n"),
+            &specs,
+        )
+        .unwrap();
+        let m = c.joints["leg"];
+        assert!((m.servo_rad(0.12) - (3.0 - 2.9)).abs() < 1e-12);
+        assert!((m.joint_rad(m.servo_rad(0.1)) - 0.1).abs() < 1e-15);
+        assert!((m.servo_rate(0.1) - 2.5).abs() < 1e-12);
+        let revolute = GOOD.replace("id = 1", "id = 1\nm_per_rad = 0.01");
+        assert_eq!(err_key(&revolute), "joints.neck_yaw.m_per_rad");
     }
 
     #[test]

@@ -90,11 +90,12 @@ impl DynamixelDriver {
             last: None,
             velocities: vec![0.0; n],
         };
-        for (spec, &id) in d.specs.iter().zip(&d.ids) {
+        for ((spec, &id), mapping) in d.specs.iter().zip(&d.ids).zip(&d.servos) {
             let named = |e: JointError| JointError::Bus(format!("joint `{}`: {e}", spec.name));
             let (model, firmware) = d.bus.ping(id).map_err(named)?;
             tracing::info!(joint = %spec.name, id, model, firmware, "servo found");
-            let acc = units::profile_acceleration(spec.max_acceleration).to_le_bytes();
+            let acc = units::profile_acceleration(mapping.servo_rate(spec.max_acceleration))
+                .to_le_bytes();
             d.bus
                 .write(id, reg::PROFILE_ACCELERATION, &acc)
                 .map_err(named)?;
@@ -135,7 +136,7 @@ impl JointDriver for DynamixelDriver {
             };
             let m = self.servos[c.index];
             let id = self.ids[c.index];
-            let v = units::profile_velocity(max_speed);
+            let v = units::profile_velocity(m.servo_rate(max_speed));
             speeds.push((id, v.to_le_bytes().to_vec()));
             let ticks = units::rad_to_ticks(m.servo_rad(position));
             goals.push((id, ticks.to_le_bytes().to_vec()));
