@@ -148,6 +148,12 @@ pub struct TouchSettings {
     /// search starts at the first. Unset: [`default_scan_points`] for the side of `arm`
     /// (see [`TouchSettings::scan_pattern`]).
     pub scan_points: Option<Vec<[f64; 3]>>,
+    /// The DR frame of the person the robot plays with (a `human` node); empty: the robot does
+    /// not look at her.
+    pub person_frame: String,
+    /// Where her face is in that frame (m): the robot looks there while it waits for her and
+    /// listens (before the game and while it has no ball to look at).
+    pub face_m: [f64; 3],
     /// The ball moved this far (m) from where it was last reported: the game says it follows it.
     pub ball_moved_m: f64,
     /// How long the arm takes to go home before another touch is a fresh start (s).
@@ -204,6 +210,8 @@ impl Default for TouchSettings {
             scan_dwell_s: 0.3,
             scan_move_timeout_s: 3.0,
             scan_points: None,
+            person_frame: "player".into(),
+            face_m: [0.0, 0.0, 1.55],
             ball_moved_m: 0.05,
             homing_s: 2.0,
             tracker_restart_grace_s: 6.0,
@@ -267,7 +275,10 @@ impl TouchSettings {
             return bad("scan_points is empty".into());
         }
         let finite = |p: &[f64]| p.iter().all(|x| x.is_finite());
-        if !self.scan_pattern().iter().all(|p| finite(p)) || !finite(&self.touch_offset_m) {
+        if !self.scan_pattern().iter().all(|p| finite(p))
+            || !finite(&self.touch_offset_m)
+            || !finite(&self.face_m)
+        {
             return bad("a point has a non-finite coordinate".into());
         }
         for r in self.arm_rest.iter().chain(&self.head_rest) {

@@ -12,10 +12,11 @@
 //!
 //! ```text
 //! game                          the game is on (Stop/Quit from anywhere -> finished)
-//! ├── waiting                   initial: waiting for the person ("hello", "let's play")
+//! ├── waiting                   initial: waiting for the person ("hello", "let's play"),
+//! │                             looking at her face
 //! └── playing                   PARALLEL: the two regions run together
 //!     ├── eyes                  what the head does
-//!     │   ├── idle              initial: no target yet
+//!     │   ├── idle              initial: no target yet; looking at her face
 //!     │   ├── searching         target sent to the tracker; the neck sweeps the scan points,
 //!     │   │   │                 from the first (where people hold a ball up) on
 //!     │   │   ├── looking       initial: turning to the next scan point (the tracker sees all
@@ -141,6 +142,8 @@ pub enum Act {
     ScanNext,
     /// Gaze at the ball, following it.
     GazeAtBall,
+    /// Gaze at the person's face, following her (she talks, the robot listens).
+    GazeAtPerson,
     /// Cancel the neck's goal (it holds where it is).
     CancelGaze,
     /// Reach the ball with the hand, following it.

@@ -559,6 +559,88 @@ async fn a_followed_ball_is_reached_again_where_it_moves_and_the_head_looks_at_i
     );
 }
 
+/// The angle (rad) between the optical axis of `frame` and the direction to the ball, in the DR.
+async fn off_axis(bus: &Bus, frame: &str) -> f64 {
+    let req = TransformRequest {
+        target: frame.into(),
+        source: "ball".into(),
+        ..Default::default()
+    };
+    let t = bus
+        .call(&topics::DR_TRANSFORM, &req, CALL)
+        .await
+        .unwrap()
+        .transform
+        .translation_m;
+    t[0].hypot(t[1]).atan2(t[2])
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gaze_turns_the_eyes_first_then_the_head_while_the_eyes_come_back_to_the_middle() {
+    let (launch, bus, states) = body_sim("body-eyes").await;
+    let goals = bus.publisher(&topics::BODY_REACH).await.unwrap();
+    let status = bus.subscriber(&topics::BODY_REACH_STATUS).await.unwrap();
+    // A ball up and to the left: the head, at rest, looks ahead and down.
+    move_ball(&bus, [0.9, 0.45, 1.3]).await;
+    assert!(off_axis(&bus, "head_rgbd_optical_frame").await > 0.4);
+    let mut gaze = reach(21, "neck", "ball", [0.0; 3]);
+    gaze.kind = ReachKind::Gaze;
+    goals.publish(&mut gaze).await.unwrap();
+    // While the head is still on its way (the camera more than 10° off), the left eye already
+    // looks at the ball (within 3°): eyes first.
+    let eyes_first = eventually_async(
+        "the left eye on the ball while the head is still turning",
+        Duration::from_secs(10),
+        || async {
+            let eye = off_axis(&bus, "left_eye_optical_frame").await;
+            let head = off_axis(&bus, "head_rgbd_optical_frame").await;
+            (eye < 3f64.to_radians() && head > 10f64.to_radians()).then_some((eye, head))
+        },
+    )
+    .await;
+    wait_state(
+        &status,
+        &launch,
+        21,
+        ReachState::Reached,
+        Duration::from_secs(15),
+    )
+    .await;
+    // The head there, both eyes still on the ball and back near their middle (what is left is
+    // the parallax between the camera and the eyes).
+    let pans = eventually_async(
+        "the eyes on the ball, near their middle",
+        Duration::from_secs(5),
+        || async {
+            let s = latest(&states).await;
+            let pans = positions(&s, &["eyes_tilt", "left_eye_pan", "right_eye_pan"]);
+            let left = off_axis(&bus, "left_eye_optical_frame").await;
+            let right = off_axis(&bus, "right_eye_optical_frame").await;
+            (pans.iter().all(|q| q.abs() < 0.15)
+                && left < 3f64.to_radians()
+                && right < 3f64.to_radians())
+            .then_some(pans)
+        },
+    )
+    .await;
+    // The gaze cancelled: the eyes go to the middle and the joints are free.
+    gaze.active = false;
+    goals.publish(&mut gaze).await.unwrap();
+    let s = eventually_async("the eyes centred", Duration::from_secs(5), || async {
+        let s = latest(&states).await;
+        let eyes = positions(&s, &["eyes_tilt", "left_eye_pan", "right_eye_pan"]);
+        (eyes.iter().all(|q| q.abs() < 1e-3) && s.get("left_eye_pan").unwrap().owner.is_empty())
+            .then_some(s)
+    })
+    .await;
+    assert_eq!(s.driver, "sim");
+    eprintln!(
+        "eyes first: the left eye {:.1}° off the ball while the camera was {:.1}° off; reached with the eyes at {pans:.3?} rad",
+        eyes_first.0.to_degrees(),
+        eyes_first.1.to_degrees()
+    );
+}
+
 /// Polls the async `f` every 50 ms until it returns `Some`, at most `timeout`.
 async fn eventually_async<T, F, Fut>(what: &str, timeout: Duration, mut f: F) -> T
 where

@@ -23,6 +23,8 @@
 //!   geometry and the list of link pairs checked.
 //! - [`trajectory`]: [`trajectory::Trajectory`], quintic time-synchronised joint trajectories
 //!   within velocity (and acceleration) limits, sampled as a pure function of time.
+//! - [`eyes`]: [`eyes::Eyes`], the eyes during a gaze of the head: on the target first, back
+//!   to the middle as the head catches up.
 //! - [`component`]: the `body_inverse_kinematics` process (`body/reach` in,
 //!   `body/reach_status` out, `dr/transform` and `body/joint_goal` called).
 //! - [`types`]: the serde request/result types ([`types::IkRequest`], [`types::IkResult`]), meant
@@ -36,6 +38,7 @@
 pub mod body;
 pub mod collision;
 pub mod component;
+pub mod eyes;
 pub mod solver;
 pub mod trajectory;
 pub mod types;

@@ -7,6 +7,12 @@
 //! smallest `T` that keeps every joint within its velocity limit (and acceleration limit, if
 //! given), and at least `min_duration_s`. Units: rad or m, rad/s or m/s, s. Sampling is a pure
 //! function of `t`; before 0 it holds the start, after `T` the goal.
+//!
+//! The jerk of joint `i` peaks at the ends, `60 |Δ_i| / T³`: [`Trajectory::jerk_limited`] makes
+//! `T` long enough for a jerk limit. Stretching `T` keeps the path and scales every speed by
+//! `1/T` and every jerk by `1/T³`, joints and any point they carry alike (the hand):
+//! [`Trajectory::point_peaks`] measures a carried point's peak speed and jerk, and
+//! [`Trajectory::stretched`] lengthens the trajectory to bring them within limits.
 
 use thiserror::Error;
 
@@ -14,6 +20,9 @@ use thiserror::Error;
 const PEAK_VEL: f64 = 15.0 / 8.0;
 /// Peak of `|d²s/dτ²|` (at `τ = ½ ± √3/6`).
 const PEAK_ACC: f64 = 5.773_502_691_896_258;
+
+/// Peak of `|d³s/dτ³|` (at `τ = 0` and `τ = 1`).
+const PEAK_JERK: f64 = 60.0;
 
 /// Bad trajectory inputs.
 #[derive(Debug, Error, PartialEq)]
@@ -135,6 +144,69 @@ impl Trajectory {
         }
     }
 
+    /// The same path over at least `duration_s` (s): every speed scaled by `T / duration_s`,
+    /// every jerk by its cube. A shorter or non-finite `duration_s` changes nothing.
+    pub fn stretched(mut self, duration_s: f64) -> Self {
+        if duration_s.is_finite() && duration_s > self.duration_s {
+            self.duration_s = duration_s;
+        }
+        self
+    }
+
+    /// Lengthened so that no joint's jerk exceeds `max_jerk` (per joint, rad/s³ or m/s³; a
+    /// limit that is not > 0 or is infinite is no limit).
+    pub fn jerk_limited(self, max_jerk: &[f64]) -> Self {
+        let mut t = self.duration_s;
+        for ((a, b), &j) in self.start.iter().zip(&self.goal).zip(max_jerk) {
+            if j.is_finite() && j > 0.0 {
+                t = t.max((PEAK_JERK * (b - a).abs() / j).cbrt());
+            }
+        }
+        self.stretched(t)
+    }
+
+    /// Each joint's peak jerk (rad/s³ or m/s³).
+    pub fn peak_jerk(&self) -> Vec<f64> {
+        self.start
+            .iter()
+            .zip(&self.goal)
+            .map(|(a, b)| {
+                if self.duration_s > 0.0 {
+                    PEAK_JERK * (b - a).abs() / self.duration_s.powi(3)
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// The peak speed (m/s) and jerk (m/s³) of a point the joints carry, `point(q)` (e.g. the
+    /// hand's position by forward kinematics), by finite differences over `steps` samples.
+    pub fn point_peaks(&self, point: impl Fn(&[f64]) -> [f64; 3], steps: usize) -> (f64, f64) {
+        if self.duration_s <= 0.0 || steps < 4 {
+            return (0.0, 0.0);
+        }
+        let h = self.duration_s / steps as f64;
+        let mut q = vec![0.0; self.dof()];
+        let mut at = |t: f64| {
+            self.sample_into(t, &mut q, None);
+            point(&q)
+        };
+        // Samples from -2h to T + 2h: the ends are at rest.
+        let p: Vec<[f64; 3]> = (-2..=steps as i64 + 2).map(|k| at(k as f64 * h)).collect();
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let (mut speed, mut jerk) = (0.0_f64, 0.0_f64);
+        for k in 1..p.len() - 2 {
+            let d1: [f64; 3] = std::array::from_fn(|i| (p[k + 1][i] - p[k - 1][i]) / (2.0 * h));
+            let d3: [f64; 3] = std::array::from_fn(|i| {
+                (p[k + 2][i] - 3.0 * p[k + 1][i] + 3.0 * p[k][i] - p[k - 1][i]) / h.powi(3)
+            });
+            speed = speed.max(norm(d1));
+            jerk = jerk.max(norm(d3));
+        }
+        (speed, jerk)
+    }
+
     /// `q(t)` as a new vector.
     pub fn sample(&self, t_s: f64) -> Vec<f64> {
         let mut q = vec![0.0; self.dof()];
@@ -193,6 +265,39 @@ mod tests {
         let still = Trajectory::quintic(&[0.3], &[0.3], &[1.0], None, 0.0).unwrap();
         assert_eq!(still.duration_s(), 0.0);
         assert_eq!(still.sample(0.0), vec![0.3]);
+    }
+
+    #[test]
+    fn a_jerk_limit_or_a_point_speed_limit_lengthens_it_along_the_same_path() {
+        let tr = Trajectory::quintic(&[0.0, 0.0], &[0.2, -0.1], &[1.0, 1.0], None, 0.0).unwrap();
+        assert!((tr.duration_s() - 0.375).abs() < 1e-12);
+        // 60 · 0.2 / 0.375³ = 227.6 rad/s³: over a limit of 30 the duration grows to ∛(12/30).
+        assert!((tr.peak_jerk()[0] - 60.0 * 0.2 / 0.375f64.powi(3)).abs() < 1e-9);
+        let limited = tr.clone().jerk_limited(&[30.0, f64::INFINITY]);
+        assert!((limited.duration_s() - 0.4f64.cbrt()).abs() < 1e-12);
+        assert!(limited.peak_jerk()[0] <= 30.0 * (1.0 + 1e-12));
+        assert_eq!(limited.goal(), tr.goal());
+        // A carried point: (q0, q1, 0) m. Its jerk peaks at the ends, as the joints' do.
+        let point = |q: &[f64]| [q[0], q[1], 0.0];
+        let (speed, jerk) = tr.point_peaks(point, 400);
+        let d = 0.2f64.hypot(0.1);
+        assert!(
+            (speed - PEAK_VEL * d / 0.375).abs() < 1e-3 * speed,
+            "{speed}"
+        );
+        assert!(
+            (jerk - PEAK_JERK * d / 0.375f64.powi(3)).abs() < 0.05 * jerk,
+            "{jerk}"
+        );
+        // Twice as long: half the speed, an eighth of the jerk.
+        let slow = tr.clone().stretched(0.75);
+        let (s2, j2) = slow.point_peaks(point, 400);
+        assert!((s2 - speed / 2.0).abs() < 1e-3 * speed && (j2 - jerk / 8.0).abs() < 0.05 * j2);
+        assert_eq!(
+            tr.clone().stretched(0.1).duration_s(),
+            0.375,
+            "never shortened"
+        );
     }
 
     #[test]

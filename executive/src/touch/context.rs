@@ -170,6 +170,15 @@ impl Context<Act, Input> for TouchCtx {
                 self.gaze_goal = g.id;
                 self.outputs.push(Output::Reach(g));
             }
+            Act::GazeAtPerson => {
+                if s.person_frame.is_empty() {
+                    return;
+                }
+                let mut g = self.reach(&s.neck, ReachKind::Gaze, &s.person_frame, s.face_m, true);
+                g.id = self.id();
+                self.gaze_goal = g.id;
+                self.outputs.push(Output::Reach(g));
+            }
             Act::CancelGaze => {
                 let id = std::mem::take(&mut self.gaze_goal);
                 self.cancel(&s.neck, id);

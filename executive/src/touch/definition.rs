@@ -31,10 +31,12 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     let mut b = Builder::<TouchCtx, Input, Act>::new(MACHINE);
     b.root_initial("game");
     b.compound(GAME, "waiting");
-    b.atomic(WAITING);
+    // Looking at the person while listening to her; the ball takes the head when there is one
+    // to look for.
+    b.atomic(WAITING).entry(Act::GazeAtPerson);
     b.parallel(PLAYING).exit(Act::ClearTarget);
     b.compound(EYES, "idle");
-    b.atomic(EYES_IDLE);
+    b.atomic(EYES_IDLE).entry(Act::GazeAtPerson);
     b.compound(SEARCHING, "looking")
         .entry(Act::SendTarget)
         .entry(Act::ScanFromStart)

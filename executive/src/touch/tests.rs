@@ -135,6 +135,40 @@ fn the_person_greets_and_asks_to_play_and_the_robot_answers() {
 }
 
 #[test]
+fn the_robot_looks_at_the_person_while_it_listens_and_at_the_ball_once_it_looks_for_it() {
+    let mut g = TouchGame::new(TouchSettings::default()).unwrap();
+    let face = |o: &Outcome| -> u64 {
+        let r = reaches(o);
+        assert_eq!(r.len(), 1, "{o:?}");
+        assert_eq!(
+            (
+                r[0].body_part.as_str(),
+                r[0].kind,
+                r[0].frame.as_str(),
+                r[0].follow
+            ),
+            ("neck", ReachKind::Gaze, "player", true)
+        );
+        assert_eq!(r[0].position_m, [0.0, 0.0, 1.55]);
+        r[0].id
+    };
+    // Waiting for her: her face.
+    let first = face(&g.start(t(0.0)));
+    // "Let's play": still her face, with nothing to look for yet.
+    let second = face(&g.command(&cmd(Command::Play), t(1.0)));
+    assert!(second > first);
+    // Looking for the ball: the scan takes the neck (a new gaze replaces hers).
+    let o = g.command(&cmd(Command::ScanBall), t(2.0));
+    let (scan, _) = scan_gaze(&o).expect("a scan gaze");
+    assert!(scan > second);
+    // Without a person frame the robot does not look for her.
+    let mut quiet = TouchSettings::default();
+    quiet.person_frame.clear();
+    let mut g = TouchGame::new(quiet).unwrap();
+    assert!(reaches(&g.start(t(0.0))).is_empty());
+}
+
+#[test]
 fn after_a_finished_game_the_next_visitor_starts_a_new_one_with_new_goal_ids() {
     let (mut g, first_goal) = reaching();
     g.command(&cmd(Command::Quit), t(5.0));

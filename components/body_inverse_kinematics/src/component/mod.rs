@@ -25,8 +25,10 @@
 //!    `--tolerance-m` (1 cm); the IK itself aims at min(1 mm, tolerance).
 //! 2. No solution within the tolerance: `Unreachable` with the best residual, and nothing moves.
 //! 3. Otherwise `Moving` (with the residual), then a quintic trajectory from the measured joints
-//!    to the solution (peak speed `--speed-fraction` of each joint's URDF limit, at least
-//!    `min_duration_s`), streamed as position goals.
+//!    to the solution (peak speed `--speed-fraction` of each joint's URDF limit, jerk at most
+//!    `--max-joint-jerk`, the hand of a position or pose goal at most `--max-hand-speed-m-s`, at
+//!    least `min_duration_s`), streamed as position goals. Its peak hand speed and jerk are
+//!    logged and counted (`hand_speed_limited`).
 //! 4. `Reached` once the trajectory is over and the tip, by forward kinematics of the measured
 //!    joints, is within tolerance of the target (a gaze: the target within tolerance of the
 //!    camera's optical axis; a pose: also within [`POSE_TOLERANCE_RAD`]). If it is not there
@@ -34,6 +36,14 @@
 //! 5. `follow = true`: at `--follow-hz`, the target frame is looked up again; when it moved more
 //!    than `--follow-threshold-m`, the goal is solved again from the current joints (`Moving`,
 //!    then `Reached` again).
+//!
+//! The eyes (`--eyes`, on by default): a gaze of the `neck` or `head` moves the eyes too, with
+//! the neck's own goals. At every goal sent they are aimed at the target from where the measured
+//! joints put the head ([`crate::eyes::Eyes`]): the eyes get there first, at their top speed, and
+//! turn back towards the middle as the head catches up. When the gaze ends (cancelled, replaced
+//! by a goal that is not a gaze, over) the eyes go back to the middle before the joints are
+//! released. Eyes that `body/joint_states` does not report (a servo map without them) stay
+//! still from then on: logged, counted as `eyes_not_driven`.
 //!
 //! `Failed` carries a detail for: an unknown body part, an unknown frame, the DR or `joint_motor`
 //! not answering, no joint states, a refused joint goal (with the joint, limit or owner).
@@ -105,12 +115,25 @@ pub struct Config {
     /// Peak joint speed of a trajectory, as a fraction of each joint's URDF velocity limit.
     #[arg(long, default_value_t = 0.5)]
     pub speed_fraction: f64,
+    /// Peak jerk of every joint along a trajectory (rad/s³, m/s³ for a prismatic joint): the
+    /// quintic's jerk peaks as it starts and stops, so this softens the starts of short moves.
+    #[arg(long, default_value_t = 50.0)]
+    pub max_joint_jerk: f64,
+    /// Peak speed of the hand (the tip of a position or pose goal, m/s): the arm reaches towards
+    /// a person's hand, and fast arms frighten people (seed 001 §V.E). A trajectory whose tip
+    /// would go faster is slowed down along the same path.
+    #[arg(long, default_value_t = 0.5)]
+    pub max_hand_speed_m_s: f64,
     /// Priority of this component's joint goals in joint_motor (higher preempts).
     #[arg(long, default_value_t = 0)]
     pub priority: u8,
     /// Time-out of each call to dr/transform and body/joint_goal (ms).
     #[arg(long, default_value_t = 250)]
     pub call_timeout_ms: u64,
+    /// Move the eyes with a gaze of the neck or the head (eyes first, the head after them);
+    /// `false`: the eyes stay still.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub eyes: bool,
     /// How long a goal rides out a peer that is away (the DR or joint_motor not answering, no
     /// joint states) before it fails (s): a restart by the launcher takes about a second.
     #[arg(long, default_value_t = 6.0)]
@@ -126,6 +149,8 @@ impl Config {
             ("--follow-hz", self.follow_hz),
             ("--follow-threshold-m", self.follow_threshold_m),
             ("--speed-fraction", self.speed_fraction),
+            ("--max-joint-jerk", self.max_joint_jerk),
+            ("--max-hand-speed-m-s", self.max_hand_speed_m_s),
             ("--peer-grace-s", self.peer_grace_s),
         ];
         for (flag, v) in positive {
@@ -288,6 +313,8 @@ struct Active {
     located: bool,
     /// Since when a peer has been away (ridden out for `--peer-grace-s`).
     peer_away_since: Option<Moment>,
+    /// Whether this goal moves the eyes (a gaze of the head, see the module docs).
+    eyes: bool,
 }
 
 /// Why a goal could not run. `peer_away`: the DR or joint_motor did not answer (no server, a
@@ -323,6 +350,8 @@ struct Ik {
     status: Publisher<ReachStatus>,
     timeout: Duration,
     warn: RateLimiter,
+    /// The eyes, if the model has eyes this component can drive and `--eyes` is on.
+    eyes: Option<crate::eyes::Eyes>,
 }
 
 fn call_failure(what: &str, e: &CallError) -> Failure {
@@ -426,6 +455,34 @@ impl Ik {
         }
     }
 
+    /// Gives a finished goal's joints back, the eyes first sent back to the middle if it moved
+    /// them.
+    async fn release_goal(&self, a: &Active) {
+        if let (true, Some(eyes)) = (a.eyes, &self.eyes) {
+            let centre = JointGoal {
+                client: self.client(&a.goal.body_part),
+                priority: self.config.priority,
+                targets: eyes
+                    .joints()
+                    .iter()
+                    .zip(eyes.max_speeds())
+                    .map(|(j, max_speed)| JointTarget {
+                        joint: j.clone(),
+                        mode: JointMode::Position,
+                        position: 0.0,
+                        max_speed,
+                        velocity: 0.0,
+                    })
+                    .collect(),
+                ..Default::default()
+            };
+            if let Err(f) = self.send(&centre).await {
+                tracing::warn!("could not bring the eyes back to the middle: {}", f.detail);
+            }
+        }
+        self.release(&a.goal.body_part).await;
+    }
+
     async fn release(&self, part: &str) {
         let goal = JointGoal {
             client: self.client(part),
@@ -440,6 +497,7 @@ impl Ik {
     /// A reach goal arrived.
     async fn on_goal(&mut self, goal: ReachGoal) {
         self.bus.counters().incr("goals");
+        let mut old_eyes = None;
         if let Some(old) = self.parts.remove(&goal.body_part) {
             let detail = if goal.active {
                 format!("replaced by goal {}", goal.id)
@@ -449,9 +507,17 @@ impl Ik {
             tracing::info!(part = %goal.body_part, id = old.goal.id, "{detail}");
             let s = self.active_status(&old, ReachState::Cancelled, detail);
             self.publish(s).await;
+            old_eyes = Some(old);
+        }
+        // A gaze that moved the eyes, replaced by a goal that does not: the eyes to the middle.
+        match old_eyes {
+            Some(old) if old.eyes && (!goal.active || goal.kind != ReachKind::Gaze) => {
+                self.release_goal(&old).await;
+            }
+            _ if !goal.active => self.release(&goal.body_part).await,
+            _ => {}
         }
         if !goal.active {
-            self.release(&goal.body_part).await;
             return;
         }
         let part = match BodyPart::find(&goal.body_part) {
@@ -478,6 +544,11 @@ impl Ik {
             self.config.tolerance_m
         };
         let vmax = chain.limits().iter().map(|l| l.velocity).collect();
+        let eyes = goal.kind == ReachKind::Gaze
+            && self
+                .eyes
+                .as_ref()
+                .is_some_and(|e| part.root == e.root() && e.moves_head(&chain));
         let mut active = Active {
             goal,
             part,
@@ -492,6 +563,7 @@ impl Ik {
             waiting_since: None,
             located: false,
             peer_away_since: None,
+            eyes,
         };
         tracing::info!(
             part = %active.goal.body_part,
@@ -526,7 +598,7 @@ impl Ik {
             self.parts.insert(active.goal.body_part.clone(), active);
         } else {
             // Over (unreachable or failed): nothing of this part stays owned.
-            self.release(&active.goal.body_part).await;
+            self.release_goal(&active).await;
         }
     }
 
@@ -563,6 +635,7 @@ pub struct Prepared {
     config: Config,
     urdf: std::path::PathBuf,
     body: BodyIk,
+    eyes: Option<crate::eyes::Eyes>,
 }
 
 /// Checks the flags and loads the robot model: what a restart could not fix fails here.
@@ -571,12 +644,33 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
     let body = BodyIk::from_urdf_file(&urdf)
         .with_context(|| format!("loading the robot model {}", urdf.display()))?;
-    Ok(Prepared { config, urdf, body })
+    let eyes = if config.eyes {
+        match crate::eyes::Eyes::from_model(body.model()) {
+            Ok(e) => Some(e),
+            Err(why) => {
+                tracing::info!("the eyes stay still: {why}");
+                None
+            }
+        }
+    } else {
+        None
+    };
+    Ok(Prepared {
+        config,
+        urdf,
+        body,
+        eyes,
+    })
 }
 
 /// Runs the component until shutdown.
 pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
-    let Prepared { config, urdf, body } = prepared;
+    let Prepared {
+        config,
+        urdf,
+        body,
+        eyes,
+    } = prepared;
     let states = bus.subscriber(&topics::BODY_JOINT_STATES).await?;
     let goals = bus.subscriber(&topics::BODY_REACH).await?;
     let status = bus.publisher(&topics::BODY_REACH_STATUS).await?;
@@ -601,6 +695,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         parts: HashMap::new(),
         status,
         warn: RateLimiter::new(Duration::from_secs(1)),
+        eyes,
     };
     loop {
         tokio::select! {
@@ -618,9 +713,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
     }
     // Give the joints back so that nothing stays owned by a component that is gone.
-    let parts: Vec<String> = ik.parts.keys().cloned().collect();
-    for p in parts {
-        ik.release(&p).await;
+    let parts: Vec<Active> = ik.parts.drain().map(|(_, a)| a).collect();
+    for a in &parts {
+        ik.release_goal(a).await;
     }
     tracing::info!("stopped");
     Ok(())

@@ -128,17 +128,34 @@ impl Ik {
             .map(|v| v * self.config.speed_fraction)
             .collect();
         let trajectory = match Trajectory::quintic(&q_now, &q, &vmax, None, a.goal.min_duration_s) {
-            Ok(t) => t,
+            Ok(t) => t.jerk_limited(&vec![self.config.max_joint_jerk; q.len()]),
             Err(e) => {
                 self.fail(&a.goal, format!("no trajectory to the solution: {e}"))
                     .await;
                 return false;
             }
         };
+        // The tip's path, in the part's root frame: slowed down if the hand would go too fast.
+        let tip = |q: &[f64]| {
+            let p = a.chain.fk_unchecked(q).translation.vector;
+            [p.x, p.y, p.z]
+        };
+        let (mut tip_speed, mut tip_jerk) = trajectory.point_peaks(tip, 200);
+        let trajectory =
+            if a.goal.kind != ReachKind::Gaze && tip_speed > self.config.max_hand_speed_m_s {
+                self.bus.counters().incr("hand_speed_limited");
+                let stretch = tip_speed / self.config.max_hand_speed_m_s;
+                tip_speed /= stretch;
+                tip_jerk /= stretch.powi(3);
+                let t = trajectory.duration_s() * stretch;
+                trajectory.stretched(t)
+            } else {
+                trajectory
+            };
         tracing::info!(
             part = %a.goal.body_part,
             id = a.goal.id,
-            "moving: residual {:.2} mm, solved in {solve_ms:.1} ms, trajectory {:.2} s",
+            "moving: residual {:.2} mm, solved in {solve_ms:.1} ms, trajectory {:.2} s, tip peak {tip_speed:.2} m/s, {tip_jerk:.1} m/s³",
             residual_m * 1e3,
             trajectory.duration_s()
         );
@@ -154,6 +171,46 @@ impl Ik {
         self.publish(s).await;
         self.bus.counters().incr("solved");
         true
+    }
+
+    /// Adds the eyes' targets (aimed at `target`, in the part's root frame, from the measured
+    /// head) to a gaze's joint targets. Returns whether the eyes go on being driven: not when
+    /// the joint states do not report them (logged and counted once; the eyes stay still from
+    /// then on).
+    pub(super) fn aim_eyes(
+        &mut self,
+        goal: &ReachGoal,
+        target: &Vector3<f64>,
+        targets: &mut Vec<JointTarget>,
+    ) -> bool {
+        let Some(eyes) = &self.eyes else {
+            return false;
+        };
+        match eyes.aim(&self.measured, target) {
+            Ok(q) => {
+                targets.extend(eyes.joints().iter().zip(q).zip(eyes.max_speeds()).map(
+                    |((j, position), max_speed)| JointTarget {
+                        joint: j.clone(),
+                        mode: JointMode::Position,
+                        position,
+                        max_speed,
+                        velocity: 0.0,
+                    },
+                ));
+                true
+            }
+            Err(joint) => {
+                self.eyes = None;
+                self.bus.counters().incr("eyes_not_driven");
+                tracing::warn!(
+                    part = %goal.body_part,
+                    id = goal.id,
+                    "the eyes stay still from now on: {} reports no `{joint}` (joint_motor does not drive it)",
+                    topics::BODY_JOINT_STATES.name()
+                );
+                false
+            }
+        }
     }
 
     pub(super) fn collision_free(&mut self, part: &str, q: &[f64]) -> bool {
@@ -200,7 +257,7 @@ impl Ik {
             if keep {
                 self.parts.insert(name, a);
             } else {
-                self.release(&name).await;
+                self.release_goal(&a).await;
             }
         }
     }
@@ -261,7 +318,7 @@ impl Ik {
                 let mut q = vec![0.0; plan.trajectory.dof()];
                 plan.trajectory.sample_into(t + period, &mut q, None);
                 plan.last_sent = Some(now);
-                let goal = JointGoal {
+                let mut goal = JointGoal {
                     header: Header::default(),
                     client: self.client(&a.goal.body_part),
                     priority: self.config.priority,
@@ -280,6 +337,10 @@ impl Ik {
                         .collect(),
                     release: false,
                 };
+                if a.eyes {
+                    let target = a.target_root.translation.vector;
+                    a.eyes = self.aim_eyes(&a.goal, &target, &mut goal.targets);
+                }
                 self.send(&goal).await?;
             }
             if !moving && !plan.reached && !plan.settle_failed {
