@@ -198,6 +198,15 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
         s.text == say::PLAY_ACK
     })
     .await;
+    // Nothing to look for yet: the robot looks at her face while it listens.
+    let face: ReachGoal = next(&reaches, &launch, "the gaze at her face", WAIT, |g| {
+        g.frame == "player"
+    })
+    .await;
+    assert_eq!(
+        (face.body_part.as_str(), face.kind, face.follow),
+        ("neck", ReachKind::Gaze, true)
+    );
 
     // Scan: the target for the tracker, then the neck searches where a person shows a ball.
     commands
@@ -210,7 +219,10 @@ async fn the_executive_plays_touch_the_ball_from_bus_inputs() {
         (target.hue_deg, target.saturation, target.diameter_m),
         (51.7, 0.85, 0.07)
     );
-    let first: ReachGoal = next(&reaches, &launch, "a scan gaze", WAIT, |_| true).await;
+    let first: ReachGoal = next(&reaches, &launch, "a scan gaze", WAIT, |g| {
+        g.frame != "player"
+    })
+    .await;
     assert_eq!(
         (first.body_part.as_str(), first.kind, first.frame.as_str()),
         ("neck", ReachKind::Gaze, "world")
