@@ -58,7 +58,7 @@ python3 - "$out" "$runs" <<'EOF'
 import json, sys, glob, os, re
 out, runs = sys.argv[1], int(sys.argv[2])
 SCAN = ('says "scan the ball"', 'says "track the ball"')
-MOVING = re.compile(r"part=(\S*arm\S*).*moving: .*tip peak ([\d.]+) m/s, ([\d.]+) m/s")
+MOVING = re.compile(r"moving: .*tip peak ([\d.]+) m/s, ([\d.]+) m/s.* part=(\S*arm\S*)")
 def figures(variant):
     touch, gaze, scan, scan_by, motion = [], [], [], {}, {}
     for f in sorted(glob.glob(os.path.join(out, f"{variant}-*.timings.json"))):
@@ -86,7 +86,7 @@ def figures(variant):
             m = MOVING.search(line)
             if m:
                 speed, jerk = motion.get(scenario, (0.0, 0.0))
-                motion[scenario] = (max(speed, float(m.group(2))), max(jerk, float(m.group(3))))
+                motion[scenario] = (max(speed, float(m.group(1))), max(jerk, float(m.group(2))))
     return touch, gaze, scan, scan_by, motion
 def pct(v, p):
     v = sorted(v)
