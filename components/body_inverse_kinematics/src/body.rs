@@ -11,7 +11,7 @@ use std::path::Path;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3, Vector6};
 use robot_model::ModelError;
-use robot_model::RobotModel;
+use robot_model::{Chain, RobotModel};
 use thiserror::Error;
 
 use crate::collision::{CollidingPair, SelfCollision};
@@ -326,4 +326,13 @@ pub fn goal_of(req: &IkRequest) -> Result<Goal, IkError> {
             })
         }
     }
+}
+
+/// The chain's joint values from measured positions, or the first joint missing.
+pub fn chain_q(chain: &Chain, measured: &HashMap<String, f64>) -> Result<Vec<f64>, String> {
+    chain
+        .joints
+        .iter()
+        .map(|j| measured.get(&j.name).copied().ok_or_else(|| j.name.clone()))
+        .collect()
 }

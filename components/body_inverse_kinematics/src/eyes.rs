@@ -21,6 +21,8 @@ use std::collections::HashMap;
 use nalgebra::{Point3, Vector3};
 use robot_model::{Chain, RobotModel};
 
+use crate::body::chain_q;
+
 /// The eyes' chains and joints (see the module docs).
 #[derive(Debug, Clone)]
 pub struct Eyes {
@@ -99,12 +101,7 @@ impl Eyes {
         measured: &HashMap<String, f64>,
         target: &Vector3<f64>,
     ) -> Result<[f64; 3], String> {
-        let q = |c: &Chain| -> Result<Vec<f64>, String> {
-            c.joints
-                .iter()
-                .map(|j| measured.get(&j.name).copied().ok_or_else(|| j.name.clone()))
-                .collect()
-        };
+        let q = |c: &Chain| chain_q(c, measured);
         let head = self.head.fk(&q(&self.head)?).map_err(|e| e.to_string())?;
         let in_head = head.inverse() * Point3::from(*target);
         let start = q(&self.left)?;
@@ -136,12 +133,7 @@ impl Eyes {
         measured: &HashMap<String, f64>,
         target: &Vector3<f64>,
     ) -> Option<[f64; 2]> {
-        let q = |c: &Chain| -> Option<Vec<f64>> {
-            c.joints
-                .iter()
-                .map(|j| measured.get(&j.name).copied())
-                .collect()
-        };
+        let q = |c: &Chain| chain_q(c, measured).ok();
         let head = self.head.fk(&q(&self.head)?).ok()?;
         let p = head.inverse() * Point3::from(*target);
         let off = |c: &Chain| -> Option<f64> {

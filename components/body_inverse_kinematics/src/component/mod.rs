@@ -223,14 +223,7 @@ pub fn tip_error(kind: ReachKind, tip: &Isometry3<f64>, target: &Isometry3<f64>)
     }
 }
 
-/// The chain's joint values from measured positions, or the first joint missing.
-pub fn chain_q(chain: &Chain, measured: &HashMap<String, f64>) -> Result<Vec<f64>, String> {
-    chain
-        .joints
-        .iter()
-        .map(|j| measured.get(&j.name).copied().ok_or_else(|| j.name.clone()))
-        .collect()
-}
+pub use crate::body::chain_q;
 
 /// The IK target for a goal whose target pose is `target` in the chain's root frame.
 pub fn ik_target(kind: ReachKind, target: &Isometry3<f64>) -> IkTarget {
