@@ -112,6 +112,9 @@ pub const LEFT_ARM_JOINTS: [&str; 7] = [
     "left_wrist_roll",
 ];
 
+/// The base's joints; at rest the robot faces ahead where it started.
+pub const BASE_JOINTS: [&str; 2] = ["base_yaw", "base_forward"];
+
 /// The neck's joints; at rest the head looks ahead, 0.30 rad down.
 pub const NECK_JOINTS: [&str; 4] = ["neck_rotation", "neck_pitch", "neck_roll", "neck_yaw"];
 
@@ -121,6 +124,10 @@ pub const NECK_JOINTS: [&str; 4] = ["neck_rotation", "neck_pitch", "neck_roll", 
 pub struct TouchSettings {
     /// The body part that touches (`left_arm_7`, `left_arm_11`, ...).
     pub arm: String,
+    /// The same arm with the base's yaw and forward joints (`left_arm_9`): when `arm` alone
+    /// cannot reach the ball, the robot turns (and moves a little, as far as the IK lets the base
+    /// go) and reaches with this part. Empty: the base never moves.
+    pub arm_with_base: String,
     /// The body part that gazes (and searches).
     pub neck: String,
     /// The client name on reach and joint goals.
@@ -168,8 +175,13 @@ pub struct TouchSettings {
     pub arm_rest: Vec<JointRest>,
     /// The head's rest posture when the game ends.
     pub head_rest: Vec<JointRest>,
+    /// The base's rest posture, where the arm goes home after a reach that moved the base.
+    pub base_rest: Vec<JointRest>,
     /// Speed of the moves to rest (rad/s).
     pub rest_max_speed: f64,
+    /// Speed of the base's move back to rest (rad/s for the turn, m/s forward): slower than the
+    /// arm, since the whole robot moves, and within the base joints' limits (0.5 m/s forward).
+    pub base_rest_max_speed: f64,
     /// Priority of the rest joint goals.
     pub rest_priority: u8,
 }
@@ -199,6 +211,7 @@ impl Default for TouchSettings {
     fn default() -> Self {
         TouchSettings {
             arm: "left_arm_7".into(),
+            arm_with_base: "left_arm_9".into(),
             neck: "neck".into(),
             client: "executive".into(),
             ball_hue_deg: 51.7,
@@ -217,7 +230,9 @@ impl Default for TouchSettings {
             tracker_restart_grace_s: 6.0,
             arm_rest: rest(&LEFT_ARM_JOINTS),
             head_rest: rest(&NECK_JOINTS),
+            base_rest: rest(&BASE_JOINTS),
             rest_max_speed: 0.6,
+            base_rest_max_speed: 0.25,
             rest_priority: 10,
         }
     }
@@ -254,6 +269,7 @@ impl TouchSettings {
             ("ball_moved_m", self.ball_moved_m),
             ("touch_tolerance_m", self.touch_tolerance_m),
             ("rest_max_speed", self.rest_max_speed),
+            ("base_rest_max_speed", self.base_rest_max_speed),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("{k} must be a positive number, not {v}"));
@@ -281,7 +297,12 @@ impl TouchSettings {
         {
             return bad("a point has a non-finite coordinate".into());
         }
-        for r in self.arm_rest.iter().chain(&self.head_rest) {
+        for r in self
+            .arm_rest
+            .iter()
+            .chain(&self.head_rest)
+            .chain(&self.base_rest)
+        {
             if !r.position.is_finite() {
                 return bad(format!("rest position of {} is not finite", r.joint));
             }

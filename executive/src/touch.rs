@@ -27,7 +27,9 @@
 //!     │   └── out_of_sight      the ball left the image ("the ball is out of my sight")
 //!     └── arm                   what the arm does
 //!         ├── resting           initial: arm at rest
-//!         ├── reaching          reach goal for the hand at the ball, following it
+//!         ├── reaching          reach goal for the hand at the ball, following it; out of
+//!         │   │                 the arm's reach, once: the base turns and the arm and base
+//!         │   │                 reach again (arm_with_base), else "I can't reach it"
 //!         │   ├── moving        initial: on the way
 //!         │   ├── touching      reached; courtesy_delay_s after the robot's last word
 //!         │   │                 (a sentence begun or ended enters it again) -> homing
@@ -98,6 +100,7 @@ pub mod say {
     pub const THANKS: &str = "Thank you! I'm moving my arm back.";
     pub const COURTESY: &str = "I think I touched it. I'm moving my arm back.";
     pub const CANT_REACH: &str = "I can't reach it.";
+    pub const TURNING: &str = "It's a bit far. I'm turning towards it.";
     pub const ARM_FAILED: &str = "Something is wrong with my arm.";
     pub const NOT_SEEN: &str = "I have not seen the ball yet.";
     pub const NOT_TOUCHING: &str = "I am not touching the ball.";
@@ -146,8 +149,11 @@ pub enum Act {
     GazeAtPerson,
     /// Cancel the neck's goal (it holds where it is).
     CancelGaze,
-    /// Reach the ball with the hand, following it.
+    /// Reach the ball with the hand, following it (with the arm, or the arm and the base after
+    /// [`Act::UseBase`]).
     ReachBall,
+    /// Cancel the arm's reach; the next reach uses the base too, until the arm is home.
+    UseBase,
     /// Cancel the arm's reach, then send it to its rest posture.
     HomeArm,
     /// Cancel the gaze, then the head to its rest posture.

@@ -37,6 +37,10 @@ struct Game {
     /// At each arm `Reached`: distance from the hand centre to the true ball's surface (m), and
     /// from the DR's ball to the true ball's centre (m).
     touches: Vec<(f64, f64)>,
+    /// Where the torso was in `world` at each arm `Reached` (it moves with the base).
+    torso_at_touch: Vec<[f64; 3]>,
+    /// Where the torso was last seen while the arm went home or after (sampled every 100 ms).
+    torso_at_rest: Option<[f64; 3]>,
     /// The pid killed by the test's hook.
     killed: Option<u32>,
     /// The launcher's exit code and output.
@@ -181,6 +185,9 @@ async fn play_with(
                 }
                 game.arm.push(r.state);
                 if r.state == ReachState::Reached {
+                    if let Some(torso) = world_point(&bus, "torso").await {
+                        game.torso_at_touch.push(torso);
+                    }
                     let hand = world_point(&bus, "left_hand_center").await;
                     let dr_ball = world_point(&bus, "ball").await;
                     if let (Some(hand), Some(dr_ball), Some(t)) = (hand, dr_ball, &truth) {
@@ -193,6 +200,12 @@ async fn play_with(
                 }
             }
             _ = tick.tick() => {
+                if !game.torso_at_touch.is_empty()
+                    && game.entered.iter().any(|e| e.ends_with("homing"))
+                    && let Some(torso) = world_point(&bus, "torso").await
+                {
+                    game.torso_at_rest = Some(torso);
+                }
                 if let Some((text, component)) = kill
                     && launch.lines.count(|l| l.contains(text)) > 0
                 {
@@ -706,6 +719,39 @@ async fn an_unreachable_ball_is_explained() {
     );
     assert!(!game.arm.contains(&ReachState::Reached), "{:?}", game.arm);
     assert!(game.said_any("reach"), "{:?}", game.said);
+}
+
+/// The person holds the ball out to the robot's left, beyond its arm: the robot says it turns,
+/// moves its base towards the ball (its torso moves in the world), touches the ball within 3 cm,
+/// and moves back as its arm goes home.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ball_beside_the_robot_is_touched_after_a_turn_of_the_base() {
+    let game = play("beside", &[], Duration::from_secs(180)).await;
+    check_ok(&game);
+    assert!(game.said_any("turning"), "{:?}", game.said);
+    assert!(!game.said_any("can't reach"), "{:?}", game.said);
+    // The arm alone could not, the arm and the base could.
+    let unreachable = game.arm.iter().position(|s| *s == ReachState::Unreachable);
+    let reached = game.arm.iter().rposition(|s| *s == ReachState::Reached);
+    assert!(
+        matches!((unreachable, reached), (Some(u), Some(r)) if u < r),
+        "{:?}",
+        game.arm
+    );
+    let (hand, _) = *game.touches.last().expect("a touch measured");
+    assert!(hand <= 0.03, "hand {:.1} cm from the ball", hand * 100.0);
+    // The torso's rest place in the world (base at 0: models/loki.urdf).
+    let rest = [-0.15, 0.0, 0.9];
+    let touch = *game.torso_at_touch.last().expect("the torso at the touch");
+    assert!(
+        dist(&touch, &rest) > 0.02,
+        "the base did not move: torso at {touch:?}"
+    );
+    let home = game.torso_at_rest.expect("the torso after the touch");
+    assert!(
+        dist(&home, &rest) < 0.01,
+        "the base did not go back: torso at {home:?}"
+    );
 }
 
 /// The ball tracker is killed (SIGKILL) while the robot looks at the ball, and the launcher

@@ -106,15 +106,24 @@ pub struct Config {
     /// longer than a restart of theirs (which they announce themselves).
     #[arg(long, default_value_t = 5.0)]
     pub hearing_grace_s: f64,
+    /// Whether the robot may turn (and move) its base to reach a ball its arm alone cannot
+    /// reach (the touch game's `arm_with_base`). `false` for a robot whose base joint_motor does
+    /// not drive: the base's joints would be refused.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub base: bool,
 }
 
 impl Config {
     /// The settings file's content, or the defaults.
     pub fn load_settings(&self) -> anyhow::Result<Settings> {
-        Ok(match &self.settings {
+        let mut settings = match &self.settings {
             Some(p) => Settings::load(p)?,
             None => Settings::default(),
-        })
+        };
+        if !self.base {
+            settings.touch.arm_with_base.clear();
+        }
+        Ok(settings)
     }
 }
 

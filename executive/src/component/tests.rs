@@ -53,6 +53,7 @@ async fn the_touch_loop_runs_its_timers_and_watchdog_on_a_virtual_clock() {
         state_dir: None,
         hearing_from: vec![],
         hearing_grace_s: 5.0,
+        base: true,
     };
     let (stop, shutdown) = Shutdown::new();
     let exec = tokio::spawn(run_touch(exec_bus, config, Settings::default(), shutdown));
@@ -305,6 +306,7 @@ mod tracker_restart {
                 state_dir: None,
                 hearing_from: vec![],
                 hearing_grace_s: 5.0,
+                base: true,
             };
             let (stop, shutdown) = Shutdown::new();
             let mut g = TouchRun {

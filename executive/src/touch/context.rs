@@ -21,6 +21,8 @@ pub struct TouchCtx {
     pub(super) outputs: Vec<Output>,
     pub(super) next_id: u64,
     pub(super) arm_goal: u64,
+    /// The arm's reaches use the base too ([`Act::UseBase`]; until the arm is home).
+    pub(super) with_base: bool,
     pub(super) gaze_goal: u64,
     scan_index: usize,
     pub(super) ball_seen: bool,
@@ -42,6 +44,7 @@ impl TouchCtx {
             outputs: Vec::new(),
             next_id: 0,
             arm_goal: 0,
+            with_base: false,
             gaze_goal: 0,
             scan_index: 0,
             ball_seen: false,
@@ -50,6 +53,15 @@ impl TouchCtx {
             ball_camera_distance: None,
             held_out_of_sight_since: None,
             robot_talking: false,
+        }
+    }
+
+    /// The body part the arm's reaches use now.
+    pub(super) fn arm_part(&self) -> &str {
+        if self.with_base {
+            &self.settings.arm_with_base
+        } else {
+            &self.settings.arm
         }
     }
 
@@ -102,20 +114,24 @@ impl TouchCtx {
         self.outputs.push(Output::CancelReach(g));
     }
 
-    fn rest_goal(&self, joints: &[JointRest]) -> JointGoal {
+    /// A rest goal: `joints` at `rest_max_speed`, then `slow` at `base_rest_max_speed`.
+    fn rest_goal(&self, joints: &[JointRest], slow: &[JointRest]) -> JointGoal {
+        let s = &self.settings;
+        let target = |r: &JointRest, max_speed: f64| JointTarget {
+            joint: r.joint.clone(),
+            mode: JointMode::Position,
+            position: r.position,
+            max_speed,
+            velocity: 0.0,
+        };
         JointGoal {
             header: Header::default(),
-            client: self.settings.client.clone(),
-            priority: self.settings.rest_priority,
+            client: s.client.clone(),
+            priority: s.rest_priority,
             targets: joints
                 .iter()
-                .map(|r| JointTarget {
-                    joint: r.joint.clone(),
-                    mode: JointMode::Position,
-                    position: r.position,
-                    max_speed: self.settings.rest_max_speed,
-                    velocity: 0.0,
-                })
+                .map(|r| target(r, s.rest_max_speed))
+                .chain(slow.iter().map(|r| target(r, s.base_rest_max_speed)))
                 .collect(),
             release: false,
         }
@@ -192,21 +208,36 @@ impl Context<Act, Input> for TouchCtx {
                     release: true,
                 };
                 self.outputs.push(Output::Release(release));
-                let mut g = self.reach(&s.arm, ReachKind::Position, "ball", s.touch_offset_m, true);
+                let part = self.arm_part().to_string();
+                let mut g = self.reach(&part, ReachKind::Position, "ball", s.touch_offset_m, true);
                 g.id = self.id();
                 self.arm_goal = g.id;
                 self.outputs.push(Output::Reach(g));
             }
+            Act::UseBase => {
+                let id = std::mem::take(&mut self.arm_goal);
+                let part = self.arm_part().to_string();
+                self.cancel(&part, id);
+                self.with_base = true;
+            }
             Act::HomeArm => {
                 let id = std::mem::take(&mut self.arm_goal);
-                self.cancel(&s.arm, id);
-                let goal = self.rest_goal(&s.arm_rest);
+                let part = self.arm_part().to_string();
+                self.cancel(&part, id);
+                // The base goes back too when this reach moved it; a robot whose base is not
+                // driven never reaches with it, so its rest goals never name the base's joints.
+                let base: &[JointRest] = if std::mem::take(&mut self.with_base) {
+                    &s.base_rest
+                } else {
+                    &[]
+                };
+                let goal = self.rest_goal(&s.arm_rest, base);
                 self.outputs.push(Output::Home(goal));
             }
             Act::HeadAhead => {
                 let id = std::mem::take(&mut self.gaze_goal);
                 self.cancel(&s.neck, id);
-                let goal = self.rest_goal(&s.head_rest);
+                let goal = self.rest_goal(&s.head_rest, &[]);
                 self.outputs.push(Output::Home(goal));
             }
             Act::BallSeen(seen) => self.ball_seen = seen,

@@ -25,6 +25,10 @@ fn silent(c: &TouchCtx, _: &Event<Input>) -> bool {
     !c.robot_talking
 }
 
+fn base_may_help(c: &TouchCtx, _: &Event<Input>) -> bool {
+    !c.with_base && !c.settings.arm_with_base.is_empty()
+}
+
 /// The touch-the-ball machine for `settings` (see the module docs for the states).
 pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     use state::*;
@@ -174,6 +178,13 @@ pub fn definition(settings: &TouchSettings) -> Result<Def, DefinitionError> {
     b.on(REACHING, "command:you_touched_it")
         .to(HOMING)
         .action(normal(say::THANKS));
+    // Too far for the arm alone: the base turns (and moves a little) and the arm reaches again;
+    // too far for both, the robot says so.
+    b.on(REACHING, "reach:unreachable")
+        .guard("the base may help", base_may_help)
+        .to(REACHING)
+        .action(Act::UseBase)
+        .action(normal(say::TURNING));
     b.on(REACHING, "reach:unreachable")
         .to(HOMING)
         .action(high(say::CANT_REACH));

@@ -604,9 +604,26 @@ fn the_ball_moved_while_reaching_is_followed_and_said() {
 }
 
 #[test]
-fn an_unreachable_ball_is_explained_and_the_arm_goes_home() {
+fn a_ball_out_of_the_arms_reach_turns_the_base_then_one_out_of_both_is_explained() {
     let (mut g, id) = reaching();
+    // The arm alone cannot: its goal is cancelled, the robot says it turns, and the arm and the
+    // base reach together.
     let o = g.reach_status(&status(id, ReachState::Unreachable), t(5.0));
+    assert_eq!(o.said(), [say::TURNING]);
+    let c = cancels(&o);
+    assert_eq!((c[0].id, c[0].body_part.as_str()), (id, "left_arm_7"));
+    let r = reaches(&o);
+    assert_eq!(r.len(), 1, "{o:?}");
+    assert_eq!(r[0].body_part, "left_arm_9");
+    assert!(r[0].follow && r[0].id > id);
+    assert!(homes(&o).is_empty());
+    assert_eq!(active(&g), [state::MOVING, state::TRACKING]);
+    let with_base = r[0].id;
+    // The old goal's status is no longer this reach's business.
+    let o = g.reach_status(&status(id, ReachState::Unreachable), t(5.5));
+    assert!(o.steps.is_empty() && o.said().is_empty(), "{o:?}");
+    // Out of reach of both: explained once, and the arm and the base go home.
+    let o = g.reach_status(&status(with_base, ReachState::Unreachable), t(6.0));
     assert_eq!(o.said(), [say::CANT_REACH]);
     assert!(matches!(
         o.outputs.iter().find(|x| matches!(x, Output::Say { .. })),
@@ -615,12 +632,62 @@ fn an_unreachable_ball_is_explained_and_the_arm_goes_home() {
             ..
         })
     ));
-    assert_eq!(cancels(&o)[0].id, id);
-    assert_eq!(homes(&o).len(), 1);
+    let c = cancels(&o);
+    assert_eq!(
+        (c[0].id, c[0].body_part.as_str()),
+        (with_base, "left_arm_9")
+    );
+    let home = homes(&o);
+    assert_eq!(home.len(), 1);
+    let joints: Vec<&str> = home[0].targets.iter().map(|t| t.joint.as_str()).collect();
+    assert!(
+        joints.contains(&"left_elbow") && joints.contains(&"base_yaw"),
+        "{joints:?}"
+    );
+    assert!(joints.contains(&"base_forward"), "{joints:?}");
+    // The base goes back slower than the arm.
+    let speed = |j: &str| {
+        home[0]
+            .targets
+            .iter()
+            .find(|t| t.joint == j)
+            .unwrap()
+            .max_speed
+    };
+    assert!(speed("base_forward") < speed("left_elbow"));
     assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
     // A failed status of an old goal is not this reach's business.
-    let o = g.reach_status(&status(id, ReachState::Failed), t(6.0));
+    let o = g.reach_status(&status(with_base, ReachState::Failed), t(6.5));
     assert!(o.steps.is_empty() && o.said().is_empty());
+    // The next touch starts with the arm alone again, and its rest leaves the base alone.
+    let o = g.command(&cmd(Command::TouchBall), t(7.0));
+    let r = reaches(&o);
+    assert_eq!(r[0].body_part, "left_arm_7");
+    let o = g.command(&cmd(Command::YouTouchedIt), t(8.0));
+    let home = homes(&o);
+    assert!(home[0].targets.iter().all(|t| !t.joint.starts_with("base")));
+}
+
+#[test]
+fn without_the_base_an_unreachable_ball_is_explained_at_once() {
+    let settings = TouchSettings {
+        arm_with_base: String::new(),
+        ..TouchSettings::default()
+    };
+    let mut g = TouchGame::new(settings).unwrap();
+    g.start(t(0.0));
+    g.command(&cmd(Command::Play), t(1.0));
+    g.command(&cmd(Command::ScanBall), t(2.0));
+    g.ball_track(&track([0.6, 0.1, 0.78]), t(2.9));
+    g.ball_event(&ball(BallEventKind::Detected), t(3.0));
+    let o = g.command(&cmd(Command::TouchBall), t(4.0));
+    let id = reaches(&o)[0].id;
+    let o = g.reach_status(&status(id, ReachState::Unreachable), t(5.0));
+    assert_eq!(o.said(), [say::CANT_REACH]);
+    assert_eq!(cancels(&o)[0].id, id);
+    assert!(reaches(&o).is_empty());
+    assert_eq!(homes(&o).len(), 1);
+    assert_eq!(active(&g), [state::HOMING, state::TRACKING]);
 }
 
 #[test]

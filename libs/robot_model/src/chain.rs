@@ -31,6 +31,12 @@ pub const BODY_PARTS: &[BodyPart] = &[
         dof: 7,
     },
     BodyPart {
+        name: "left_arm_9",
+        root: "base_footprint",
+        tip: "left_hand_center",
+        dof: 9,
+    },
+    BodyPart {
         name: "left_arm_11",
         root: "torso",
         tip: "left_fingertip",
@@ -59,6 +65,12 @@ pub const BODY_PARTS: &[BodyPart] = &[
         root: "torso",
         tip: "right_hand_center",
         dof: 7,
+    },
+    BodyPart {
+        name: "right_arm_9",
+        root: "base_footprint",
+        tip: "right_hand_center",
+        dof: 9,
     },
     BodyPart {
         name: "right_arm_11",

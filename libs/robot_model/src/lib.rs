@@ -23,6 +23,7 @@
 //! |---|---|---|---|
 //! | `left_arm_4`, `right_arm_4` | `torso` | `{side}_wrist_center` | shoulder pitch/roll/yaw, elbow |
 //! | `left_arm_7`, `right_arm_7` | `torso` | `{side}_hand_center` | + forearm roll, wrist pitch/roll |
+//! | `left_arm_9`, `right_arm_9` | `base_footprint` | `{side}_hand_center` | base yaw and base forward + the 7 |
 //! | `left_arm_11`, `right_arm_11` | `torso` | `{side}_fingertip` | + the 4 finger joints |
 //! | `left_arm_13`, `right_arm_13` | `base_footprint` | `{side}_fingertip` | + base yaw and base forward |
 //! | `left_arm`, `right_arm` | = `{side}_arm_7` (the reaching arm of "touch the ball") | | |
@@ -486,6 +487,37 @@ impl RobotModel {
             .collect()
     }
 
+    /// Narrows a movable joint's position range to `[lower, upper]`, which must lie inside the
+    /// URDF's limits: what a component lets itself use of a joint (a short move of the base, say),
+    /// not what the joint can do. Chains made after this have the narrowed limits.
+    ///
+    /// Errors: an unknown or fixed joint ([`ModelError::UnknownJoint`]), a range that is not
+    /// finite, empty or outside the URDF's ([`ModelError::InvalidModel`]).
+    pub fn narrow_limits(&mut self, joint: &str, lower: f64, upper: f64) -> Result<()> {
+        let i = *self
+            .joint_index
+            .get(joint)
+            .ok_or_else(|| ModelError::UnknownJoint(joint.to_string()))?;
+        let j = &mut self.joints[i];
+        if !j.kind.is_movable() {
+            return Err(ModelError::UnknownJoint(format!("{joint} (a fixed joint)")));
+        }
+        let (lo, hi) = (j.limits.lower, j.limits.upper);
+        if !(lower.is_finite() && upper.is_finite() && lower <= upper) {
+            return Err(ModelError::InvalidModel(format!(
+                "joint `{joint}`: the range [{lower}, {upper}] is not a finite, non-empty range"
+            )));
+        }
+        if lower < lo || upper > hi {
+            return Err(ModelError::InvalidModel(format!(
+                "joint `{joint}`: the range [{lower}, {upper}] is outside its limits [{lo}, {hi}]"
+            )));
+        }
+        j.limits.lower = lower;
+        j.limits.upper = upper;
+        Ok(())
+    }
+
     /// A camera by name.
     pub fn camera(&self, name: &str) -> Option<&CameraIntrinsics> {
         self.cameras.iter().find(|c| c.name == name)
@@ -573,6 +605,30 @@ mod tests {
                 "{}",
                 j.name
             );
+        }
+    }
+
+    #[test]
+    fn a_narrowed_joint_range_reaches_the_chains_and_bad_ranges_are_refused() {
+        let mut m = loki();
+        m.narrow_limits("base_forward", 0.0, 0.2).unwrap();
+        let c = m.body_part("left_arm_13").unwrap();
+        let l = c
+            .joints
+            .iter()
+            .find(|j| j.name == "base_forward")
+            .unwrap()
+            .limits;
+        assert_eq!((l.lower, l.upper), (0.0, 0.2));
+        for (joint, lo, hi, why) in [
+            ("base_forward", -3.0, 0.1, "outside its limits"),
+            ("base_forward", 0.2, 0.1, "non-empty"),
+            ("base_forward", f64::NAN, 0.1, "finite"),
+            ("no_such_joint", 0.0, 0.1, "unknown joint"),
+            ("torso_fixed", 0.0, 0.1, "fixed joint"),
+        ] {
+            let e = m.narrow_limits(joint, lo, hi).unwrap_err().to_string();
+            assert!(e.contains(why), "{joint} [{lo}, {hi}]: {e}");
         }
     }
 

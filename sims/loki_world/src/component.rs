@@ -10,9 +10,9 @@ use interfaces::{Bus, Shutdown, topics};
 /// The simulated person's flags.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Config {
-    /// A built-in scenario (still, moving, out_of_view, unreachable, confirm_yes, bench,
-    /// barge_in, tracker_restart, restart_mid_game) or a TOML
-    /// file.
+    /// A built-in scenario (`sims/loki_world/scenarios/`, by its name: still, moving,
+    /// out_of_view, unreachable, beside, confirm_yes, barge_in, ...; a wrong name lists them
+    /// all) or a TOML file.
     #[arg(long, default_value = "still")]
     pub scenario: String,
     /// `sim/ball` rate (Hz).

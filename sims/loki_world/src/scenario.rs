@@ -65,7 +65,17 @@ pub const BUILT_IN: &[(&str, &str)] = &[
         "machine_away",
         include_str!("../scenarios/machine_away.toml"),
     ),
+    ("beside", include_str!("../scenarios/beside.toml")),
 ];
+
+/// The built-in scenarios' names, comma-separated.
+pub fn built_in_names() -> String {
+    BUILT_IN
+        .iter()
+        .map(|(n, _)| *n)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
@@ -88,7 +98,8 @@ pub enum ScenarioError {
     #[error("scenario {origin}: {why}")]
     InvalidBall { origin: String, why: String },
     #[error(
-        "no scenario {0:?}: give a file path or one of the built-in names (still, moving, out_of_view, unreachable, confirm_yes, bench, barge_in, tracker_restart, restart_mid_game)"
+        "no scenario {0:?}: give a file path or one of the built-in names ({names})",
+        names = built_in_names()
     )]
     Unknown(String),
 }
@@ -439,9 +450,10 @@ expect = { robot_said = "hello", timeout_s = 5, repeat = 2 }
         assert!(e.contains("diameter_m"), "{e}");
         let e = err("name = \"t\"\n[[step]]\npause_s = nan\n");
         assert!(e.contains("pause_s"), "{e}");
-        assert!(matches!(
-            Scenario::load("no-such-scenario"),
-            Err(ScenarioError::Unknown(_))
-        ));
+        let e = Scenario::load("no-such-scenario").unwrap_err();
+        assert!(matches!(e, ScenarioError::Unknown(_)));
+        // The message lists every built-in name.
+        let e = e.to_string();
+        assert!(BUILT_IN.iter().all(|(n, _)| e.contains(n)), "{e}");
     }
 }

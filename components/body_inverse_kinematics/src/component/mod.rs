@@ -138,6 +138,24 @@ pub struct Config {
     /// joint states) before it fails (s): a restart by the launcher takes about a second.
     #[arg(long, default_value_t = 6.0)]
     pub peer_grace_s: f64,
+    /// Narrows a joint's range for every solve: `JOINT=LOWER:UPPER` (rad, or m for a prismatic
+    /// joint), inside the URDF's limits; repeatable. `base_forward=0:0.2` lets a reach that
+    /// uses the base (`left_arm_13`) move it 20 cm forward at most.
+    #[arg(long = "joint-range", value_name = "JOINT=LOWER:UPPER", value_parser = parse_joint_range)]
+    pub joint_ranges: Vec<(String, f64, f64)>,
+}
+
+/// A `--joint-range` value: `JOINT=LOWER:UPPER`.
+fn parse_joint_range(s: &str) -> Result<(String, f64, f64), String> {
+    let bad = || format!("`{s}`: expected JOINT=LOWER:UPPER, e.g. base_forward=0:0.2");
+    let (joint, range) = s.split_once('=').ok_or_else(bad)?;
+    let (lo, hi) = range.split_once(':').ok_or_else(bad)?;
+    let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
+    let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
+    if joint.trim().is_empty() {
+        return Err(bad());
+    }
+    Ok((joint.trim().to_string(), lo, hi))
 }
 
 impl Config {
@@ -635,8 +653,15 @@ pub struct Prepared {
 pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     config.check()?;
     let urdf = find_model(config.urdf.as_deref(), "loki.urdf");
-    let body = BodyIk::from_urdf_file(&urdf)
+    let mut model = robot_model::RobotModel::from_urdf_file(&urdf)
         .with_context(|| format!("loading the robot model {}", urdf.display()))?;
+    for (joint, lo, hi) in &config.joint_ranges {
+        model
+            .narrow_limits(joint, *lo, *hi)
+            .with_context(|| format!("--joint-range {joint}={lo}:{hi}"))?;
+        tracing::info!("{joint} limited to [{lo}, {hi}] in every solve");
+    }
+    let body = BodyIk::new(model);
     let eyes = if config.eyes {
         match crate::eyes::Eyes::from_model(body.model()) {
             Ok(e) => Some(e),
