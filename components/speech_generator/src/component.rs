@@ -173,6 +173,10 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
                         Event::Queued(r) => {
                             speaking.publish(&mut event(&r, SpeakingState::Queued, 0.0, "")).await?;
                         }
+                        Event::Again(r) => {
+                            bus.counters().incr("said_once_sent_again");
+                            tracing::info!(id = r.id, "{:?} sent again while it is queued or being said: said once", r.text);
+                        }
                         Event::Dropped(r) => {
                             bus.counters().incr("dropped_queue_full");
                             speaking.publish(&mut event(&r, SpeakingState::Dropped, 0.0, "queue full")).await?;

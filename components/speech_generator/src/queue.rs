@@ -6,6 +6,9 @@
 //!   spoken next; the interrupted utterance is not resumed.
 //! - The queue holds at most `capacity` waiting requests; when full, the lowest-priority, newest
 //!   waiting request is dropped (possibly the new one).
+//! - A request with the id and text of one being spoken or waiting is the same request sent
+//!   again (a caller that lost sight of the generator, say while the bus' router restarted,
+//!   sends again what it did not hear finish): it is taken once, not said twice.
 //!
 //! Pure logic: the component feeds requests and "finished" notices and acts on the returned
 //! [`Event`]s.
@@ -21,6 +24,8 @@ pub enum Event {
     Dropped(SayRequest),
     /// Stop speaking this one now (an urgent request came).
     Interrupt(SayRequest),
+    /// The request is already being spoken or waiting (sent again): nothing else happens.
+    Again(SayRequest),
 }
 
 #[derive(Debug)]
@@ -43,6 +48,13 @@ impl SpeechQueue {
 
     /// A new request.
     pub fn push(&mut self, req: SayRequest) -> Vec<Event> {
+        let same = |r: &SayRequest| r.id == req.id && r.text == req.text;
+        if req.id != 0
+            && (self.speaking.as_ref().is_some_and(same)
+                || self.waiting.iter().any(|(_, r)| same(r)))
+        {
+            return vec![Event::Again(req)];
+        }
         let mut events = Vec::new();
         if req.priority == Priority::Urgent
             && let Some(cur) = &self.speaking
@@ -126,6 +138,35 @@ mod tests {
             q.done();
         }
         assert_eq!(order, vec![3, 1, 4, 2]);
+    }
+
+    #[test]
+    fn a_request_sent_again_while_queued_or_spoken_is_said_once() {
+        let mut q = SpeechQueue::new(10);
+        q.push(req(2, Priority::Normal));
+        q.push(req(3, Priority::Normal));
+        assert_eq!(q.start_next().map(|r| r.id), Some(2));
+        // Both sent again (the caller lost sight of the generator): neither is queued twice.
+        assert_eq!(
+            q.push(req(2, Priority::Normal)),
+            [Event::Again(req(2, Priority::Normal))]
+        );
+        assert_eq!(
+            q.push(req(3, Priority::Normal)),
+            [Event::Again(req(3, Priority::Normal))]
+        );
+        assert_eq!(q.waiting(), 1);
+        q.done();
+        assert_eq!(q.start_next().map(|r| r.id), Some(3));
+        q.done();
+        assert!(q.start_next().is_none());
+        // Once said, the same request again is said again (the caller asked for it after the end).
+        q.push(req(3, Priority::Normal));
+        assert_eq!(q.start_next().map(|r| r.id), Some(3));
+        // Another text under the same id is another request.
+        let mut other = req(3, Priority::Normal);
+        other.text = "something else".into();
+        assert!(matches!(q.push(other)[..], [Event::Queued(_)]));
     }
 
     #[test]
