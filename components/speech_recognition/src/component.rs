@@ -35,6 +35,20 @@ pub struct Config {
     /// publish its utterances, and exit.
     #[arg(long)]
     pub wav: Option<PathBuf>,
+    /// With `--wav`: the file's channels are the microphones of this array, beamformed into one
+    /// channel before decoding. A name in `models/arrays/` (kinect_v1, circular_4, circular_6,
+    /// laptop_2; found under ./models, else built in) or a geometry file of its own.
+    #[arg(long, requires = "wav", value_name = "NAME|FILE")]
+    pub array: Option<String>,
+    /// With `--array`: where the talker is, in the array's frame (degrees; 0 straight ahead,
+    /// positive to the left). Without it the localizer picks the loudest talker of the file.
+    #[arg(
+        long,
+        requires = "array",
+        allow_hyphen_values = true,
+        value_name = "DEG"
+    )]
+    pub target_azimuth_deg: Option<f64>,
     /// End-pointer: dB above the noise floor that starts speech.
     #[arg(long, default_value_t = VadConfig::default().start_db)]
     pub start_db: f64,
@@ -89,6 +103,8 @@ pub struct SpeechRecognition;
 pub struct Prepared {
     pub recognizer: Recognizer,
     pub wav: Option<PathBuf>,
+    /// The array the file's channels come from (`--array`), and the talker's azimuth (rad).
+    pub array: Option<(audio::array::ArrayGeometry, Option<f64>)>,
     /// Who acts on `speech/utterance` (empty: nobody is waited for).
     pub readers: Vec<String>,
     /// How long an utterance is held for them at most.
@@ -117,9 +133,27 @@ impl Component for SpeechRecognition {
             "--hold-s must be a number of seconds >= 0, got {}",
             config.hold_s
         );
+        let array = match &config.array {
+            Some(name) => {
+                let geometry = audio::array::ArrayGeometry::by_name_or_path(
+                    name,
+                    std::path::Path::new("models"),
+                )
+                .map_err(|e| anyhow::anyhow!("--array {name}: {e}"))?;
+                if let Some(deg) = config.target_azimuth_deg {
+                    anyhow::ensure!(
+                        deg.is_finite(),
+                        "--target-azimuth-deg must be a number of degrees, got {deg}"
+                    );
+                }
+                Some((geometry, config.target_azimuth_deg.map(f64::to_radians)))
+            }
+            None => None,
+        };
         Ok(Prepared {
             recognizer: recognizer(&config)?,
             wav: config.wav,
+            array,
             readers: config
                 .utterance_readers
                 .iter()
@@ -295,7 +329,29 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
         let pcm =
             audio::wav::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        let samples = audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ);
+        let samples = match &prepared.array {
+            None => audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ),
+            Some((geometry, azimuth)) => {
+                let b = crate::array_wav::beamform(&pcm, geometry, *azimuth)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                tracing::info!(
+                    "{}: {} microphones of {}, listening at {:.0} degrees ({})",
+                    path.display(),
+                    geometry.channels(),
+                    geometry.name(),
+                    b.azimuth_rad.to_degrees(),
+                    if b.located {
+                        format!(
+                            "the loudest talker: a sound in {} of {} blocks",
+                            b.blocks_located, b.blocks
+                        )
+                    } else {
+                        "as given".to_string()
+                    }
+                );
+                audio::signal::resample(&b.samples, b.sample_rate_hz, RATE_HZ)
+            }
+        };
         let (results, rec) = tokio::task::spawn_blocking(move || {
             let mut v = recognizer.push(&samples)?;
             v.extend(recognizer.flush()?);

@@ -21,6 +21,7 @@
 //! A second program, `speech_model` (`src/bin/`), builds the adapted acoustic model.
 
 pub mod adapt;
+pub mod array_wav;
 pub mod component;
 pub mod confidence;
 pub mod denoise;
