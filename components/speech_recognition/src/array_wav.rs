@@ -45,7 +45,7 @@ pub struct Beamformed {
     pub azimuth_rad: f64,
     /// Whether the localizer chose it (no azimuth was given).
     pub located: bool,
-    /// The localizer's blocks with a sound in them, of all its blocks (0 of 0 when it was given).
+    /// The localizer's blocks with a sound in them, of all its blocks.
     pub blocks_located: usize,
     pub blocks: usize,
 }
