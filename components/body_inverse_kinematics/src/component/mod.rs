@@ -140,7 +140,7 @@ pub struct Config {
     pub peer_grace_s: f64,
     /// Narrows a joint's range for every solve: `JOINT=LOWER:UPPER` (rad, or m for a prismatic
     /// joint), inside the URDF's limits; repeatable. `base_forward=0:0.2` lets a reach that
-    /// uses the base (`left_arm_13`) move it 20 cm forward at most.
+    /// uses the base (`left_arm_9`, `left_arm_13`) move it 20 cm forward at most.
     #[arg(long = "joint-range", value_name = "JOINT=LOWER:UPPER", value_parser = parse_joint_range)]
     pub joint_ranges: Vec<(String, f64, f64)>,
 }
