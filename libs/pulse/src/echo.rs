@@ -60,6 +60,18 @@ impl EchoCanceller {
         source_master: &str,
         sink_master: &str,
     ) -> Result<Self, Error> {
+        Self::load_with(server, source_master, sink_master, false)
+    }
+
+    /// [`EchoCanceller::load`], with `all_channels`: its source keeps every channel of the
+    /// microphone (a microphone array's, in its order and with its channel map) instead of the
+    /// server's default layout; each channel has the speaker's voice taken out.
+    pub fn load_with(
+        server: Option<&str>,
+        source_master: &str,
+        sink_master: &str,
+        all_channels: bool,
+    ) -> Result<Self, Error> {
         // No gain control: the canceller would change the microphone's volume (analog) or the
         // signal's level (digital) as people and the robot speak, under the recognizer's
         // end-pointer, which follows the room's level itself. No noise suppression either: it
@@ -71,6 +83,9 @@ impl EchoCanceller {
             "aec_method=webrtc aec_args=\"analog_gain_control=0 digital_gain_control=0 \
              noise_suppression=0\"",
         );
+        if all_channels {
+            argument += " use_master_format=1";
+        }
         let mut tag = String::new();
         if source_master != DEFAULT_SOURCE {
             let m = module_value("echo canceller's microphone", source_master)?;

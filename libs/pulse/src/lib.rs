@@ -68,6 +68,9 @@ pub struct Device {
     /// The rate and channel count the device runs at (streams are converted to and from it).
     pub rate_hz: u32,
     pub channels: u8,
+    /// Its channels' positions in the server's own words (`front-left,front-right`,
+    /// `aux0,aux1,aux2,aux3`): a stream opened with the same map gets every channel as it is.
+    pub channel_map: String,
     /// Whether this source is the monitor of a sink (what the sink plays).
     pub monitor: bool,
 }
@@ -100,6 +103,16 @@ impl Devices {
             (Kind::Sink, DEFAULT_SINK) => !self.default_sink.is_empty(),
             _ => self.of(kind).iter().any(|d| d.name == name),
         }
+    }
+
+    /// The device `name` of `kind` (the default names stand for the server's default device).
+    pub fn find(&self, kind: Kind, name: &str) -> Option<&Device> {
+        let name = match (kind, name) {
+            (Kind::Source, DEFAULT_SOURCE) => self.default_source.as_str(),
+            (Kind::Sink, DEFAULT_SINK) => self.default_sink.as_str(),
+            _ => name,
+        };
+        self.of(kind).iter().find(|d| d.name == name)
     }
 
     /// The devices of `kind` as a readable list, one per line, the default marked.

@@ -124,6 +124,7 @@ pub fn devices(server: Option<&str>) -> Result<Devices, Error> {
                 description: s.description.as_deref().unwrap_or("").to_string(),
                 rate_hz: s.sample_spec.rate,
                 channels: s.sample_spec.channels,
+                channel_map: s.channel_map.print(),
                 monitor: s.monitor_of_sink.is_some(),
             });
         }
@@ -136,6 +137,7 @@ pub fn devices(server: Option<&str>) -> Result<Devices, Error> {
                 description: s.description.as_deref().unwrap_or("").to_string(),
                 rate_hz: s.sample_spec.rate,
                 channels: s.sample_spec.channels,
+                channel_map: s.channel_map.print(),
                 monitor: false,
             });
         }

@@ -4,6 +4,7 @@ use crate::server::devices;
 use crate::{Error, Kind, describe, server_label};
 use libpulse_binding as pa;
 use libpulse_simple_binding::Simple;
+use pa::channelmap::Map;
 use pa::def::BufferAttr;
 use pa::error::{Code, PAErr};
 use pa::sample::{Format, Spec};
@@ -88,12 +89,12 @@ impl Stream {
         server: Option<&str>,
         kind: Kind,
         device: &str,
-        rate_hz: u32,
-        channels: u8,
+        spec: Spec,
+        map: Option<&Map>,
         attr: &BufferAttr,
         stream_name: &str,
     ) -> Result<Self, Error> {
-        let spec = spec(rate_hz, channels)?;
+        let (rate_hz, channels) = (spec.rate, spec.channels);
         let direction = match kind {
             Kind::Source => Direction::Record,
             Kind::Sink => Direction::Playback,
@@ -105,7 +106,7 @@ impl Stream {
             Some(device),
             stream_name,
             &spec,
-            None,
+            map,
             Some(attr),
         )
         .map_err(|e| open_error(server, kind, device, e))?;
@@ -150,6 +151,58 @@ impl Capture {
         chunk_frames: usize,
         stream_name: &str,
     ) -> Result<Self, Error> {
+        Self::open_with(
+            server,
+            source,
+            rate_hz,
+            channels,
+            None,
+            chunk_frames,
+            stream_name,
+        )
+    }
+
+    /// Open `source` as [`Capture::open`] does, with the channel map `channel_map` (the
+    /// server's words, as [`crate::Device::channel_map`] has them): a stream with the source's
+    /// own map gets each of its channels as they are, in their order. (With another map the
+    /// server mixes channels by their positions, and those it cannot place, such as a
+    /// microphone array's `aux0`..`aux7` into a default 4-channel map, come out silent.)
+    pub fn open_mapped(
+        server: Option<&str>,
+        source: &str,
+        rate_hz: u32,
+        channel_map: &str,
+        chunk_frames: usize,
+        stream_name: &str,
+    ) -> Result<Self, Error> {
+        let map = Map::new_from_string(channel_map)
+            .ok()
+            .filter(|m| m.is_valid())
+            .ok_or_else(|| Error::Invalid {
+                what: "channel map".into(),
+                reason: format!("{channel_map:?} is not a channel map of the server's"),
+            })?;
+        let channels = map.len();
+        Self::open_with(
+            server,
+            source,
+            rate_hz,
+            channels,
+            Some(&map),
+            chunk_frames,
+            stream_name,
+        )
+    }
+
+    fn open_with(
+        server: Option<&str>,
+        source: &str,
+        rate_hz: u32,
+        channels: u8,
+        map: Option<&Map>,
+        chunk_frames: usize,
+        stream_name: &str,
+    ) -> Result<Self, Error> {
         if chunk_frames == 0 {
             return Err(Error::Invalid {
                 what: "chunk".into(),
@@ -168,8 +221,8 @@ impl Capture {
             server,
             Kind::Source,
             source,
-            rate_hz,
-            channels,
+            spec(rate_hz, channels)?,
+            map,
             &attr,
             stream_name,
         )?;
@@ -245,8 +298,8 @@ impl Playback {
             server,
             Kind::Sink,
             sink,
-            rate_hz,
-            channels,
+            spec(rate_hz, channels)?,
+            None,
             &attr,
             stream_name,
         )?;

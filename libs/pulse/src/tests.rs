@@ -13,6 +13,7 @@ fn sample() -> Devices {
                 description: "Monitor of Room".into(),
                 rate_hz: 48_000,
                 channels: 2,
+                channel_map: "front-left,front-right".into(),
                 monitor: true,
             },
             Device {
@@ -20,6 +21,7 @@ fn sample() -> Devices {
                 description: "Microphone".into(),
                 rate_hz: 48_000,
                 channels: 2,
+                channel_map: "front-left,front-right".into(),
                 monitor: false,
             },
         ],
@@ -43,6 +45,36 @@ fn names_and_defaults_are_found_and_listed() {
         "{l}"
     );
     assert_eq!(d.listing(Kind::Sink), "  (none)");
+    assert_eq!(
+        d.find(Kind::Source, DEFAULT_SOURCE)
+            .map(|d| d.name.as_str()),
+        Some("mic")
+    );
+    assert_eq!(
+        d.find(Kind::Source, "room.monitor")
+            .map(|d| d.channel_map.as_str()),
+        Some("front-left,front-right")
+    );
+    assert!(d.find(Kind::Sink, DEFAULT_SINK).is_none());
+}
+
+#[test]
+fn a_channel_map_the_server_would_not_know_is_refused_before_it_is_asked() {
+    for map in ["", "aux0,not-a-position", "front-left,,front-right"] {
+        let e = Capture::open_mapped(
+            Some("unix:/nonexistent/socket"),
+            "mic",
+            16_000,
+            map,
+            320,
+            "t",
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&e, Error::Invalid { what, .. } if what == "channel map"),
+            "{map:?}: {e}"
+        );
+    }
 }
 
 #[test]
