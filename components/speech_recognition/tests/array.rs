@@ -5,9 +5,7 @@
 
 mod common;
 
-use audio::array::{ArrayGeometry, direction, sim::render_plane_wave};
-use audio::signal::{NoiseRng, active_power};
-use audio::synth::{synthesize_16k, talker};
+use audio::array::{ArrayGeometry, sim::TalkersRoom};
 use audio::wav::Pcm;
 use common::voice;
 use interfaces::msg::command::{Command, Game};
@@ -26,74 +24,39 @@ fn room(
     others_deg: [f64; 2],
     under_db: f64,
 ) -> (Pcm, Vec<Command>, Vec<usize>) {
-    let player = voice("en-gb", 150, 45);
     let commands: Vec<Command> = Command::of_game(Game::Touch).collect();
-    let said: Vec<Vec<i16>> = commands
-        .iter()
-        .map(|c| synthesize_16k(c.phrase(), &player).unwrap())
-        .collect();
-    let (lead, gap) = (6 * RATE, 2 * RATE);
-    let mut starts = vec![];
-    let mut n = lead;
-    for s in &said {
-        starts.push(n);
-        n += s.len() + gap;
-    }
-    let mut voice_track = vec![0.0; n];
-    for (s, &at) in said.iter().zip(&starts) {
-        for (k, &x) in s.iter().enumerate() {
-            voice_track[at + k] = f64::from(x);
-        }
-    }
-    let p = said.iter().map(|s| active_power(s)).sum::<f64>() / said.len() as f64;
-    let gain = (10f64.powf(-under_db / 10.0)).sqrt();
-    let sentences = [
+    let phrases: Vec<&str> = commands.iter().map(|c| c.phrase()).collect();
+    let sentences = vec![
         "the bakery on the corner opens at seven every morning",
         "we drove along the coast and stopped for lunch in a small village",
         "he keeps his old records in a box under the stairs",
         "the garden looks lovely after the rain in spring",
     ];
-    let mut channels = render_plane_wave(
-        geometry,
-        &voice_track,
-        direction(player_deg.to_radians(), 0.0),
-        RATE as f64,
-    )
-    .unwrap();
-    for (k, (v, deg)) in [("en-us+m2", others_deg[0]), ("en-gb+f5", others_deg[1])]
-        .into_iter()
-        .enumerate()
-    {
-        let talk = talker(&voice(v, 160 + 10 * k as u32, 40), &sentences, k).unwrap();
-        let scale = gain * (p / active_power(&talk)).sqrt();
-        let track: Vec<f64> = (0..n)
-            .map(|i| f64::from(talk[i % talk.len()]) * scale)
-            .collect();
-        let heard = render_plane_wave(
-            geometry,
-            &track,
-            direction(deg.to_radians(), 0.0),
-            RATE as f64,
-        )
-        .unwrap();
-        for (c, h) in channels.iter_mut().zip(heard) {
-            for (x, y) in c.iter_mut().zip(h) {
-                *x += y;
-            }
-        }
+    let rendered = TalkersRoom {
+        player: voice("en-gb", 150, 45),
+        phrases: &phrases,
+        player_azimuth_rad: player_deg.to_radians(),
+        others: vec![
+            (
+                voice("en-us+m2", 160, 40),
+                others_deg[0].to_radians(),
+                sentences.clone(),
+            ),
+            (
+                voice("en-gb+f5", 170, 40),
+                others_deg[1].to_radians(),
+                sentences,
+            ),
+        ],
+        under_db,
+        lead_s: 6.0,
+        gap_s: 2.0,
+        mic_noise: 30.0,
+        seed: 3,
     }
-    // A little noise of the microphones themselves, each its own.
-    let mut rng = NoiseRng::new(3);
-    let samples = (0..n)
-        .flat_map(|i| channels.iter().map(move |c| c[i]).collect::<Vec<_>>())
-        .map(|x| (x + 30.0 * rng.gaussian()).round().clamp(-32768.0, 32767.0) as i16)
-        .collect();
-    let pcm = Pcm {
-        sample_rate_hz: RATE as u32,
-        channels: geometry.channels() as u16,
-        samples,
-    };
-    (pcm, commands, starts)
+    .render(geometry)
+    .unwrap();
+    (rendered.pcm, commands, rendered.starts)
 }
 
 fn decode(samples: &[i16]) -> Vec<Recognized> {

@@ -24,12 +24,17 @@ impl Pcm {
     }
     /// The mono mix (channel average).
     pub fn to_mono(&self) -> Vec<i16> {
-        let c = self.channels.max(1) as usize;
-        self.samples
-            .chunks(c)
-            .map(|f| (f.iter().map(|&s| s as i32).sum::<i32>() / f.len() as i32) as i16)
-            .collect()
+        mix_to_mono(&self.samples, usize::from(self.channels))
     }
+}
+
+/// `samples` of `channels` interleaved channels mixed into one: each frame's mean (a last,
+/// partial frame is the mean of what it has).
+pub fn mix_to_mono(samples: &[i16], channels: usize) -> Vec<i16> {
+    samples
+        .chunks(channels.max(1))
+        .map(|f| (f.iter().map(|&s| i32::from(s)).sum::<i32>() / f.len() as i32) as i16)
+        .collect()
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
