@@ -8,7 +8,7 @@ mod playback;
 mod shared;
 
 use capture::{Detector, capture_loop, raw_microphone_loop};
-pub use devices::Echo;
+pub use devices::{ArrayLayout, Echo};
 use devices::{Presence, open_capture, watch_devices};
 use interfaces::clock::Moment;
 use playback::playback_loop;
@@ -74,7 +74,7 @@ pub struct Config {
     /// Do not open the speaker (audio/out is not played).
     #[arg(long)]
     pub no_playback: bool,
-    /// Sample rate of audio/in (Hz, mono); the server converts the microphone to it.
+    /// Sample rate of audio/in (Hz); the server converts the microphone to it.
     #[arg(long, default_value_t = 16_000)]
     pub rate_hz: u32,
     /// Length of the audio/in chunks (ms).
@@ -106,6 +106,13 @@ pub struct Config {
     /// over it.
     #[arg(long, value_enum, default_value_t = ResidualEcho::Suppress)]
     pub residual_echo: ResidualEcho,
+    /// The microphone is an array: every channel of the source goes onto audio/in as it is, in
+    /// the source's order, for the recognizer to beamform. A geometry in `models/arrays/`
+    /// (kinect_v1, circular_4, circular_6, laptop_2; found under ./models, else built in) or a
+    /// geometry file of its own. A source with another channel count than the array's is
+    /// captured in mono, said and counted (`array_channel_mismatch`); the game goes on.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub array: Option<String>,
 }
 
 /// The longest a sentence stays paused for speech whose end is never heard (the recognizer
@@ -217,7 +224,11 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
             listing: devices.listing(pulse::Kind::Sink),
         }));
     }
-    let echo = Arc::new(Echo::new(&config));
+    let array = match &config.array {
+        Some(name) => Some(array_layout(&config, name, &devices)?),
+        None => None,
+    };
+    let echo = Arc::new(Echo::new(&config, array));
     let capture = if config.no_capture {
         None
     } else {
@@ -237,11 +248,54 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
     })
 }
 
+/// The array `--array` names, checked against the flags: its rate must be audio/in's, and the
+/// echo canceller's residual suppression works on one channel only.
+fn array_layout(
+    config: &Config,
+    name: &str,
+    devices: &pulse::Devices,
+) -> anyhow::Result<ArrayLayout> {
+    let geometry =
+        audio::array::ArrayGeometry::by_name_or_path(name, std::path::Path::new("models"))
+            .map_err(|e| config_error(anyhow::anyhow!("--array {name}: {e}")))?;
+    anyhow::ensure!(
+        !config.no_capture,
+        "--array is the microphone's: it has no meaning with --no-capture"
+    );
+    anyhow::ensure!(
+        geometry.sample_rate_hz() == config.rate_hz,
+        "--array {name}: the array's geometry is for {} Hz, audio/in is at --rate-hz {}: give          the same rate to both",
+        geometry.sample_rate_hz(),
+        config.rate_hz
+    );
+    anyhow::ensure!(
+        !(config.echo_cancel == EchoCancel::Webrtc
+            && config.residual_echo == ResidualEcho::Suppress),
+        "--array with --echo-cancel webrtc needs --residual-echo keep: the residual echo          suppressor works on one channel, and would leave the array's channels out of step"
+    );
+    let layout = ArrayLayout {
+        name: geometry.name().to_string(),
+        channels: geometry.channels(),
+    };
+    if let Some(d) = devices.find(pulse::Kind::Source, &config.source) {
+        tracing::info!(
+            "microphone array {}: {} microphones; the source {:?} has {} channels ({})",
+            layout.name,
+            layout.channels,
+            d.name,
+            d.channels,
+            d.channel_map
+        );
+    }
+    Ok(layout)
+}
+
 /// What the capture thread tells the bus loop.
 #[derive(Debug)]
 enum Heard {
-    /// A chunk, and how long its last sample waited before it was read (µs).
-    Chunk(Vec<i16>, u64),
+    /// A chunk (its channels interleaved), and how long its last sample waited before it was
+    /// read (µs).
+    Chunk(Vec<i16>, u16, u64),
     /// The double-talk detector heard the player start speaking over the robot.
     PlayerOverRobot,
     /// The microphone failed (why).
@@ -389,8 +443,14 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             String::new()
         } else {
             format!(
-                "microphone {:?} onto audio/in ({} Hz mono, {} ms chunks)",
-                config.source, config.rate_hz, config.chunk_ms
+                "microphone {:?} onto audio/in ({} Hz {}, {} ms chunks)",
+                config.source,
+                config.rate_hz,
+                match echo.array() {
+                    Some(a) => format!("{} channels of the array {}", a.channels, a.name),
+                    None => "mono".to_string(),
+                },
+                config.chunk_ms
             )
         },
         if config.no_playback {
@@ -407,9 +467,9 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     let result = loop {
         tokio::select! {
             heard = heard_rx.recv(), if capture_thread.is_some() => match heard {
-                Some(Heard::Chunk(samples, latency_us)) => {
+                Some(Heard::Chunk(samples, channels, latency_us)) => {
                     if let Some(publisher) = &audio_in {
-                        let mut msg = AudioChunk::mono(config.rate_hz, &samples);
+                        let mut msg = AudioChunk::interleaved(config.rate_hz, channels, &samples);
                         // The time of the chunk's first sample.
                         let at = bus.clock().now_ns() - chunk_ns - (latency_us as i64) * 1000;
                         msg.header.stamp_ns = at.max(1);

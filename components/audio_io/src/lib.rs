@@ -48,6 +48,16 @@
 //!   had not played is taken back) and goes on `--resume-after-s` after the speech ended (1.5 s
 //!   after the detector's pause if the recognizer heard no speech), unless the sentence was
 //!   interrupted meanwhile (a command said over it).
+//! - **A microphone array** (`--array NAME|FILE`, a geometry of `models/arrays/`): every
+//!   channel of the source goes onto `audio/in` as it is, in the source's order (the stream is
+//!   opened with the source's own channel map: with the server's default map an array's `aux`
+//!   channels would be remixed, or come out silent), for the recognizer to beamform
+//!   (`speech_recognition --array`). Behind `--echo-cancel webrtc` the canceller keeps all the
+//!   channels (`use_master_format`), each with the robot's voice taken out; the residual-echo
+//!   suppressor works on one channel, so an array there needs `--residual-echo keep`. A source
+//!   whose channel count is not the array's (the wrong source or geometry; a device that came
+//!   back with fewer channels) is said at every opening, counted as `array_channel_mismatch`,
+//!   and `audio/in` goes on in mono, its channels mixed.
 
 pub mod component;
 pub mod double_talk;

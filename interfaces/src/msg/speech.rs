@@ -34,6 +34,13 @@ impl AudioChunk {
             pcm_s16le: samples.iter().flat_map(|s| s.to_le_bytes()).collect(),
         }
     }
+    /// A chunk of `channels` interleaved channels from samples.
+    pub fn interleaved(sample_rate_hz: u32, channels: u16, samples: &[i16]) -> Self {
+        Self {
+            channels,
+            ..Self::mono(sample_rate_hz, samples)
+        }
+    }
     /// The samples (interleaved), or `None` when the byte count is odd.
     pub fn samples(&self) -> Option<Vec<i16>> {
         if !self.pcm_s16le.len().is_multiple_of(2) {

@@ -257,6 +257,7 @@ async fn start_audio_io(
         pause_on_speech: false,
         resume_after_s: 0.8,
         residual_echo,
+        array: None,
     };
     let prepared = component::prepare(config)?;
     let component_bus = Bus::open(&connect, "audio_io").await?;

@@ -2,7 +2,7 @@
 //! the echo canceller, and the double-talk detector between them.
 
 use super::Heard;
-use super::devices::{gone, open_capture, reopen};
+use super::devices::{gone, open_capture, published_channels, reopen};
 use super::shared::{Loops, Played};
 use crate::double_talk::{self, DoubleTalk};
 use std::sync::Arc;
@@ -203,6 +203,7 @@ pub(super) fn capture_loop(
         ..
     } = *loops;
     let mut samples = Vec::new();
+    let mut publish = published_channels(&capture, echo.array(), counters);
     while !stop.load(Ordering::Relaxed) {
         let read = match capture.read(&mut samples) {
             Ok(()) if presence.source_missing.load(Ordering::Relaxed) => {
@@ -233,10 +234,16 @@ pub(super) fn capture_loop(
                             })
                             .collect()
                     }
-                    None => vec![(std::mem::take(&mut samples), latency)],
+                    None if u16::from(capture.channels()) == publish => {
+                        vec![(std::mem::take(&mut samples), latency)]
+                    }
+                    None => vec![(
+                        audio::wav::mix_to_mono(&samples, usize::from(capture.channels())),
+                        latency,
+                    )],
                 };
                 for (chunk, waited_us) in chunks {
-                    match tx.try_send(Heard::Chunk(chunk, waited_us)) {
+                    match tx.try_send(Heard::Chunk(chunk, publish, waited_us)) {
                         Ok(()) => {}
                         Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
                             counters.incr("capture_overruns");
@@ -260,6 +267,7 @@ pub(super) fn capture_loop(
                     return;
                 };
                 (capture, generation) = again;
+                publish = published_channels(&capture, echo.array(), counters);
                 if tx.blocking_send(Heard::Back).is_err() {
                     return;
                 }

@@ -16,15 +16,32 @@ use std::time::Duration;
 #[derive(Debug)]
 pub struct Echo {
     config: Config,
+    /// The microphone array (`--array`): the canceller keeps all its channels.
+    array: Option<ArrayLayout>,
     loaded: Mutex<(Option<pulse::EchoCanceller>, u64)>,
 }
 
+/// The microphone array of `--array`, as the capture needs it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ArrayLayout {
+    /// The geometry's name.
+    pub name: String,
+    /// Its microphones: the channels audio/in carries when the source has as many.
+    pub channels: usize,
+}
+
 impl Echo {
-    pub(super) fn new(config: &Config) -> Self {
+    pub(super) fn new(config: &Config, array: Option<ArrayLayout>) -> Self {
         Self {
             config: config.clone(),
+            array,
             loaded: Mutex::new((None, 0)),
         }
+    }
+
+    /// The microphone array, if the microphone is one.
+    pub(super) fn array(&self) -> Option<&ArrayLayout> {
+        self.array.as_ref()
     }
 
     /// The source and the sink to open, and the canceller's generation. After the failure of a
@@ -49,7 +66,12 @@ impl Echo {
             _ => {
                 // The old one first: the new one takes its devices' names.
                 *canceller = None;
-                let ec = pulse::EchoCanceller::load(c.server(), &c.source, &c.sink)?;
+                let ec = pulse::EchoCanceller::load_with(
+                    c.server(),
+                    &c.source,
+                    &c.sink,
+                    self.array.is_some(),
+                )?;
                 tracing::info!(
                     "echo cancellation: the sound server's WebRTC canceller between the microphone \
                  {:?} and the speaker {:?} (module {}: source {:?}, sink {:?})",
@@ -75,15 +97,59 @@ pub(super) fn open_capture(
     failed: Option<u64>,
 ) -> Result<(pulse::Capture, u64), pulse::Error> {
     let (source, _, generation) = echo.devices(failed)?;
-    let capture = pulse::Capture::open(
-        config.server(),
-        &source,
-        config.rate_hz,
-        1,
-        config.chunk_frames(),
-        "robot microphone",
-    )?;
+    let capture = match echo.array() {
+        None => pulse::Capture::open(
+            config.server(),
+            &source,
+            config.rate_hz,
+            1,
+            config.chunk_frames(),
+            "robot microphone",
+        )?,
+        // Every channel of the source with its own map: the server neither mixes nor
+        // reorders them (an array's `aux` channels would come out silent in a default map).
+        Some(_) => {
+            let devices = pulse::devices(config.server())?;
+            let map = devices
+                .find(pulse::Kind::Source, &source)
+                .map(|d| d.channel_map.clone())
+                .ok_or_else(|| gone(pulse::Kind::Source, &source))?;
+            pulse::Capture::open_mapped(
+                config.server(),
+                &source,
+                config.rate_hz,
+                &map,
+                config.chunk_frames(),
+                "robot microphone array",
+            )?
+        }
+    };
     Ok((capture, generation))
+}
+
+/// What audio/in carries of what `capture` reads: every channel when they are the array's
+/// microphones, else one channel (a mono microphone; or an array's source with another channel
+/// count than the array's, mixed down, said and counted as `array_channel_mismatch`).
+pub(super) fn published_channels(
+    capture: &pulse::Capture,
+    array: Option<&ArrayLayout>,
+    counters: &interfaces::bus::Counters,
+) -> u16 {
+    let got = usize::from(capture.channels());
+    match array {
+        Some(a) if a.channels == got => u16::from(capture.channels()),
+        Some(a) => {
+            counters.incr("array_channel_mismatch");
+            tracing::error!(
+                "the microphone {:?} has {got} channels, the array {} has {} microphones:                  audio/in goes on in mono (its channels mixed), without the array's hearing;                  is it the array's source, and is its geometry the right one?",
+                capture.device(),
+                a.name,
+                a.channels
+            );
+            1
+        }
+        None => 1,
+    }
 }
 
 /// Whether the named devices are on the server, as the device watcher last saw. A source or a
