@@ -3,6 +3,7 @@
 //!
 //! Every utterance is also printed on stdout as one line `utterance {json}`.
 
+use crate::beam::LiveBeam;
 use crate::confidence::ConfidenceConfig;
 use crate::heard;
 use crate::model::{AcousticModel, adapted_model_dir};
@@ -18,9 +19,51 @@ use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
 use std::time::Duration;
 
-/// Audio chunks (100 ms each from the simulated person and the tests) that may wait for the
-/// decoder: 10 s.
-pub const DECODER_BACKLOG: usize = 100;
+/// The audio that may wait for the decoder (s), whatever the chunks' length (20 ms from
+/// `audio_io`, 100 ms from the simulated person): the longest utterance and its decoding.
+pub const DECODER_BACKLOG_S: f64 = 10.0;
+
+/// The most chunks that may wait for the decoder, however short: 10 s of 2.5 ms chunks.
+const DECODER_BACKLOG_CHUNKS: usize = 4000;
+
+/// The queue of audio (one channel, 16 kHz) to the decoder thread, bounded by its duration: a
+/// chunk that would take it over [`DECODER_BACKLOG_S`] (or [`DECODER_BACKLOG_CHUNKS`]) is
+/// dropped and counted.
+struct DecoderQueue {
+    tx: std::sync::mpsc::SyncSender<(Vec<i16>, Moment, i64)>,
+    /// Samples sent and not yet taken by the decoder.
+    queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl DecoderQueue {
+    fn new() -> (Self, DecoderInbox) {
+        let (tx, rx) = std::sync::mpsc::sync_channel(DECODER_BACKLOG_CHUNKS);
+        let queued = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        (
+            Self {
+                tx,
+                queued: queued.clone(),
+            },
+            DecoderInbox { rx, queued },
+        )
+    }
+}
+
+/// The decoder thread's end of a [`DecoderQueue`].
+struct DecoderInbox {
+    rx: std::sync::mpsc::Receiver<(Vec<i16>, Moment, i64)>,
+    queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl DecoderInbox {
+    /// The next chunk, blocking; `None` once the queue's sender is gone.
+    fn recv(&self) -> Option<(Vec<i16>, Moment, i64)> {
+        let chunk = self.rx.recv().ok()?;
+        self.queued
+            .fetch_sub(chunk.0.len(), std::sync::atomic::Ordering::Relaxed);
+        Some(chunk)
+    }
+}
 
 /// The recognizer's flags.
 #[derive(Debug, Clone, clap::Args)]
@@ -35,13 +78,17 @@ pub struct Config {
     /// publish its utterances, and exit.
     #[arg(long)]
     pub wav: Option<PathBuf>,
-    /// With `--wav`: the file's channels are the microphones of this array, beamformed into one
-    /// channel before decoding. A name in `models/arrays/` (kinect_v1, circular_4, circular_6,
-    /// laptop_2; found under ./models, else built in) or a geometry file of its own.
-    #[arg(long, requires = "wav", value_name = "NAME|FILE")]
+    /// The audio's channels are the microphones of this array (audio/in from `audio_io
+    /// --array`, or the `--wav` file's), beamformed into one channel before decoding. A name in
+    /// `models/arrays/` (kinect_v1, circular_4, circular_6, laptop_2; found under ./models, else
+    /// built in) or a geometry file of its own. audio/in chunks with another channel count are
+    /// mixed into one, counted as `array_channel_mismatch`.
+    #[arg(long, value_name = "NAME|FILE")]
     pub array: Option<String>,
     /// With `--array`: where the talker is, in the array's frame (degrees; 0 straight ahead,
-    /// positive to the left). Without it the localizer picks the loudest talker of the file.
+    /// positive to the left). Without it, on audio/in the beam listens straight ahead (where
+    /// the robot looks, for an array on its head); on a `--wav` file the localizer picks the
+    /// loudest talker of the file.
     #[arg(
         long,
         requires = "array",
@@ -140,6 +187,11 @@ impl Component for SpeechRecognition {
                     std::path::Path::new("models"),
                 )
                 .map_err(|e| anyhow::anyhow!("--array {name}: {e}"))?;
+                anyhow::ensure!(
+                    config.wav.is_some() || geometry.sample_rate_hz() == RATE_HZ,
+                    "--array {name}: the geometry is for {} Hz; audio/in is heard at {RATE_HZ} Hz",
+                    geometry.sample_rate_hz()
+                );
                 if let Some(deg) = config.target_azimuth_deg {
                     anyhow::ensure!(
                         deg.is_finite(),
@@ -248,15 +300,17 @@ const CHUNK_GAP_NS: i64 = 500_000_000;
 /// room for, is dropped and counted.
 fn feed(
     bus: &Bus,
-    audio_tx: &std::sync::mpsc::SyncSender<(Vec<i16>, Moment, i64)>,
+    audio_tx: &DecoderQueue,
+    beam: &mut Option<LiveBeam>,
     chunk: AudioChunk,
 ) -> anyhow::Result<()> {
+    let channels = usize::from(chunk.channels);
     let reason = if chunk.sample_rate_hz != RATE_HZ {
         Some("wrong_rate")
-    } else if chunk.channels != 1 {
-        Some("not_mono")
-    } else if !chunk.pcm_s16le.len().is_multiple_of(2) {
-        Some("odd_bytes")
+    } else if channels == 0 {
+        Some("no_channels")
+    } else if !chunk.pcm_s16le.len().is_multiple_of(2 * channels) {
+        Some("partial_frame")
     } else if chunk.pcm_s16le.is_empty() {
         Some("empty")
     } else {
@@ -267,7 +321,7 @@ fn feed(
         let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         if n.is_power_of_two() || n == 0 {
             tracing::warn!(
-                "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz mono s16le), {} so far",
+                "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz s16le, whole frames), {} so far",
                 chunk.sample_rate_hz,
                 chunk.channels,
                 chunk.pcm_s16le.len(),
@@ -279,23 +333,75 @@ fn feed(
     let Some(samples) = chunk.samples() else {
         return Ok(());
     };
-    match audio_tx.try_send((samples, bus.clock().now(), chunk.header.stamp_ns)) {
-        Ok(()) => Ok(()),
-        Err(std::sync::mpsc::TrySendError::Full(_)) => {
-            let c = bus.counters().counter("audio_dropped/decoder_behind");
-            let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            if n.is_power_of_two() || n == 0 {
-                tracing::warn!(
-                    "the decoder is {DECODER_BACKLOG} chunks behind: dropped an audio chunk, {} so far",
-                    n + 1
+    let (samples, stamp_ns) = match beam {
+        Some(beam) if channels > 1 => {
+            let heard = beam.push(&samples, channels);
+            if !heard.beamformed {
+                let n = bus
+                    .counters()
+                    .counter("array_channel_mismatch")
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if n.is_power_of_two() || n == 0 {
+                    tracing::warn!(
+                        "an audio/in chunk of {channels} channels, the array {} has {} microphones: mixed into one channel, not beamformed ({} so far)",
+                        beam.name(),
+                        beam.channels(),
+                        n + 1
+                    );
+                }
+            }
+            (heard.samples, chunk.header.stamp_ns - beam.latency_ns())
+        }
+        _ if channels > 1 => {
+            let n = bus
+                .counters()
+                .counter("audio_mixed_to_mono")
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if n == 0 {
+                tracing::info!(
+                    "audio/in has {channels} channels: mixed into one (with --array <its geometry> the recognizer beamforms them)"
                 );
             }
-            Ok(())
+            (
+                audio::wav::mix_to_mono(&samples, channels),
+                chunk.header.stamp_ns,
+            )
         }
-        Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
-            anyhow::bail!("the decoder thread stopped")
+        _ => (samples, chunk.header.stamp_ns),
+    };
+    let limit = (DECODER_BACKLOG_S * f64::from(RATE_HZ)) as usize;
+    let queued = audio_tx.queued.load(std::sync::atomic::Ordering::Relaxed);
+    let n = samples.len();
+    // Counted before it is sent: the decoder may take it (and count it out) at once.
+    let full = queued + n > limit || {
+        audio_tx
+            .queued
+            .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        match audio_tx.tx.try_send((samples, bus.clock().now(), stamp_ns)) {
+            Ok(()) => false,
+            Err(std::sync::mpsc::TrySendError::Full(_)) => {
+                audio_tx
+                    .queued
+                    .fetch_sub(n, std::sync::atomic::Ordering::Relaxed);
+                true
+            }
+            Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
+                anyhow::bail!("the decoder thread stopped")
+            }
+        }
+    };
+    if full {
+        let c = bus.counters().counter("audio_dropped/decoder_behind");
+        let k = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        if k.is_power_of_two() || k == 0 {
+            tracing::warn!(
+                "the decoder is {:.1} s behind: dropped an audio chunk, {} so far",
+                queued as f64 / f64::from(RATE_HZ),
+                k + 1
+            );
         }
     }
+    Ok(())
 }
 
 /// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
@@ -374,11 +480,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         return Ok(());
     }
     // The decoder blocks for a fraction of a second per utterance: it runs on its own thread.
-    // Bounded both ways: audio the decoder has not taken within DECODER_BACKLOG chunks is
+    // Bounded both ways: audio the decoder is more than DECODER_BACKLOG_S behind on is
     // dropped and counted (`audio_dropped/decoder_behind`), and the decoder waits for this
     // loop to take its results.
-    let (audio_tx, audio_rx) =
-        std::sync::mpsc::sync_channel::<(Vec<i16>, Moment, i64)>(DECODER_BACKLOG);
+    let (audio_tx, audio_rx) = DecoderQueue::new();
     let preroll_ns = (recognizer.config().vad.preroll_s.max(0.0) * 1e9) as i64;
     let (res_tx, mut res_rx) = tokio::sync::mpsc::channel::<anyhow::Result<Decoded>>(16);
     std::thread::Builder::new()
@@ -387,7 +492,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             let mut heard_s = 0.0;
             // The start of the utterance whose speech was announced.
             let mut announced: Option<f64> = None;
-            while let Ok((samples, arrived, stamp_ns)) = audio_rx.recv() {
+            while let Some((samples, arrived, stamp_ns)) = audio_rx.recv() {
                 let dropped_before = recognizer.dropped_short();
                 heard_s += samples.len() as f64 / f64::from(RATE_HZ);
                 match recognizer.push(&samples) {
@@ -426,6 +531,19 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 }
             }
         })?;
+    let mut beam = match &prepared.array {
+        Some((geometry, azimuth)) => {
+            let beam = LiveBeam::new(geometry, azimuth.unwrap_or(0.0))?;
+            tracing::info!(
+                "audio/in from the {} microphones of the array {}: listening at {:.0} degrees of its frame",
+                beam.channels(),
+                beam.name(),
+                beam.azimuth_rad().to_degrees()
+            );
+            Some(beam)
+        }
+        None => None,
+    };
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
     // A restart: what was said while this recognizer was down, from the microphone's kept audio.
     let mut keeper = prepared.state_dir.as_deref().map(heard::Keeper::new);
@@ -465,7 +583,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
         for chunk in missed {
             fed_until_ns = fed_until_ns.max(chunk.header.stamp_ns);
-            feed(&bus, &audio_tx, chunk)?;
+            feed(&bus, &audio_tx, &mut beam, chunk)?;
         }
     }
     // What is heard while the dialog restarts waits for it (see `interfaces::outbox`).
@@ -508,7 +626,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 if chunk.header.stamp_ns <= fed_until_ns {
                     continue;
                 }
-                feed(&bus, &audio_tx, chunk)?;
+                feed(&bus, &audio_tx, &mut beam, chunk)?;
             }
             r = res_rx.recv() => {
                 let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };

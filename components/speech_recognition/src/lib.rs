@@ -22,6 +22,7 @@
 
 pub mod adapt;
 pub mod array_wav;
+pub mod beam;
 pub mod component;
 pub mod confidence;
 pub mod denoise;
