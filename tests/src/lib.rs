@@ -579,6 +579,57 @@ impl SoundServer {
         Self::start_with(tag, ROOM_WITH_SPEAKER)
     }
 
+    /// A room with a microphone array: besides the usual devices, a null sink `array` of
+    /// `channels` channels at 16 kHz mapped `aux0`, `aux1`, ... as a USB array shows up; its
+    /// monitor (`array.monitor`) is the array's source, heard as played into it.
+    pub fn start_array(tag: &str, channels: usize) -> SoundServer {
+        Self::start_with(
+            tag,
+            &format!(
+                "load-module module-null-sink sink_name=array rate=16000 channels={channels} \
+                 channel_map={}\n",
+                Self::aux_map(channels)
+            ),
+        )
+    }
+
+    /// The channel map `aux0,aux1,...` of `channels` channels.
+    pub fn aux_map(channels: usize) -> String {
+        (0..channels)
+            .map(|k| format!("aux{k}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+
+    /// Play `samples` (`channels` interleaved, 16 kHz) into `sink` with the channel map `map`,
+    /// returning once all of it was played (`timeout` at most).
+    pub fn play(&self, sink: &str, channels: usize, map: &str, samples: &[i16], timeout: Duration) {
+        let file = self.dir.join(format!("play-{}.raw", std::process::id()));
+        let bytes: Vec<u8> = samples.iter().flat_map(|s| s.to_le_bytes()).collect();
+        std::fs::write(&file, bytes).expect("the sound to play");
+        let out = run(
+            Path::new("pacat"),
+            &[
+                "--server".into(),
+                self.address.clone(),
+                "--device".into(),
+                sink.into(),
+                "--raw".into(),
+                "--format=s16le".into(),
+                "--rate=16000".into(),
+                format!("--channels={channels}"),
+                format!("--channel-map={map}"),
+                file.display().to_string(),
+            ],
+            timeout,
+        );
+        assert!(
+            out.status.success(),
+            "pacat: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+
     fn start_with(tag: &str, more: &str) -> SoundServer {
         let dir = scratch(&unique_namespace(&format!("sound-{tag}"))).join("pulse");
         std::fs::create_dir_all(&dir).expect("sound server dir");
@@ -699,6 +750,26 @@ impl Drop for SoundServer {
         // folders are pruned by later runs.
         self.kill();
     }
+}
+
+/// The first diagnostics on `diagnostics` that `pick` takes (10 s at most, else the test fails
+/// with the last one seen).
+pub async fn diagnostics_until(
+    diagnostics: &interfaces::Subscriber<interfaces::msg::diag::Diagnostics>,
+    pick: impl Fn(&interfaces::msg::diag::Diagnostics) -> bool,
+) -> interfaces::msg::diag::Diagnostics {
+    let mut last = None;
+    let found = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            let d = diagnostics.recv().await.unwrap();
+            if pick(&d) {
+                return d;
+            }
+            last = Some(d);
+        }
+    })
+    .await;
+    found.unwrap_or_else(|_| panic!("no such diagnostics within 10 s; the last: {last:?}"))
 }
 
 /// Everything received on a topic, drained in the background (subscriber queues are bounded).

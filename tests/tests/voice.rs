@@ -96,12 +96,11 @@ async fn spoken_command_on_audio_in_becomes_a_game_command() {
     let answers = bus.publisher(&topics::GAME_ANSWER).await.unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
 
-    // Wrong rate, stereo and empty chunks: dropped, counted, logged.
+    // Wrong rate, half a stereo frame and empty chunks: dropped, counted, logged.
     let mut bad = AudioChunk::mono(8000, &[100; 800]);
     audio.publish(&mut bad).await.unwrap();
-    let mut stereo = AudioChunk::mono(16000, &[100; 1600]);
-    stereo.channels = 2;
-    audio.publish(&mut stereo).await.unwrap();
+    let mut half = AudioChunk::interleaved(16000, 2, &[100; 1601]);
+    audio.publish(&mut half).await.unwrap();
     audio
         .publish(&mut AudioChunk::mono(16000, &[]))
         .await
@@ -113,8 +112,8 @@ async fn spoken_command_on_audio_in_becomes_a_game_command() {
         });
     launch
         .lines
-        .wait_for("stereo dropped", Duration::from_secs(10), |l| {
-            l.contains("dropped audio chunk (not_mono")
+        .wait_for("half a frame dropped", Duration::from_secs(10), |l| {
+            l.contains("dropped audio chunk (partial_frame")
         });
 
     // A warm-up utterance first: the decoder's cepstral mean starts from the model's prior and
@@ -195,6 +194,15 @@ async fn spoken_command_on_audio_in_becomes_a_game_command() {
         got.contains(&(Command::TouchBall, asked)),
         "{got:?} after {heard:?} (asked: {asked})"
     );
+
+    // A stereo chunk (no --array here) is heard, its channels mixed into one; said once.
+    let mut stereo = AudioChunk::interleaved(16000, 2, &[0; 1600]);
+    audio.publish(&mut stereo).await.unwrap();
+    launch
+        .lines
+        .wait_for("stereo mixed", Duration::from_secs(10), |l| {
+            l.contains("audio/in has 2 channels: mixed into one")
+        });
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -673,23 +681,4 @@ async fn next_line(said: &interfaces::Subscriber<SayRequest>, timeout: Duration)
         .unwrap_or_else(|_| panic!("the robot said nothing within {timeout:?}"))
         .unwrap()
         .text
-}
-
-/// The first diagnostics that `pick` accepts (10 s at most).
-async fn diagnostics_until(
-    diagnostics: &interfaces::Subscriber<interfaces::msg::diag::Diagnostics>,
-    pick: impl Fn(&interfaces::msg::diag::Diagnostics) -> bool,
-) -> interfaces::msg::diag::Diagnostics {
-    let mut last = None;
-    let found = tokio::time::timeout(Duration::from_secs(10), async {
-        loop {
-            let d = diagnostics.recv().await.unwrap();
-            if pick(&d) {
-                return d;
-            }
-            last = Some(d);
-        }
-    })
-    .await;
-    found.unwrap_or_else(|_| panic!("no such diagnostics within 10 s; the last: {last:?}"))
 }

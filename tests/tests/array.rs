@@ -1,0 +1,226 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
+//! A microphone array through a real sound server: `audio_io --array` captures every channel of
+//! a multichannel source onto `audio/in`, and `speech_recognition --array` beamforms them into the
+//! commands it hears. The array is a null sink of `aux` channels, as USB arrays show up, into
+//! which the test plays what each microphone hears of a room of talkers.
+//!
+//! Needs the workspace's binaries built (`cargo build --release --workspace --bins`).
+#![expect(
+    clippy::disallowed_methods,
+    reason = "process tests wait on real processes, with a time-out on every wait"
+)]
+
+use audio::array::sim::TalkersRoom;
+use audio::array::{ArrayGeometry, Multichannel, SrpPhat};
+use audio::synth::Voice;
+use interfaces::msg::command::{Command, Game};
+use interfaces::msg::speech::Utterance;
+use interfaces::{Bus, topics};
+use robocog_tests::*;
+use std::time::Duration;
+
+fn voice(name: &str, speed_wpm: u32, pitch: u8) -> Voice {
+    Voice {
+        voice: name.into(),
+        speed_wpm,
+        pitch,
+    }
+}
+
+/// The recognizer and the microphone on the sound server `server`, both given `--array
+/// array`, the microphone on `source` with `more` flags of its own.
+fn manifest(server: &SoundServer, source: &str, array: &str, more: &str) -> String {
+    format!(
+        r#"
+[[component]]
+name = "speech_recognition"
+binary = "{}"
+args = ["--game", "touch", "--array", "{array}"]
+
+[[component]]
+name = "audio_io"
+binary = "{}"
+args = ["--server", "{}", "--source", "{source}", "--sink", "room", "--array", "{array}"{more}]
+depends_on = ["speech_recognition"]
+external_inputs = ["audio/out", "speech/speaking"]
+"#,
+        bin("speech_recognition").display(),
+        bin("audio_io").display(),
+        server.address,
+    )
+}
+
+/// The graph `text` up, and a bus of the test's own on it.
+async fn graph(tag: &str, text: &str) -> (Launch, Bus) {
+    let ns = unique_namespace(tag);
+    let m = scratch(&ns).join("array.toml");
+    std::fs::write(&m, text).unwrap();
+    let launch = Launch::start(&m, &ns, &[]);
+    launch
+        .lines
+        .wait_for("audio_io up", Duration::from_secs(60), |l| {
+            l.contains("audio_io is up")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-array")
+        .await
+        .unwrap();
+    (launch, bus)
+}
+
+/// The touch game's commands as exactly themselves, each once, in the order heard.
+fn commands(heard: &[Utterance]) -> Vec<Command> {
+    heard
+        .iter()
+        .filter(|u| u.command != Command::None)
+        .map(|u| u.command)
+        .collect()
+}
+
+/// A 4-microphone circular array (a null sink of 4 `aux` channels) behind the server's echo
+/// canceller: `audio_io` puts its 4 channels on `audio/in`, each as it is and in its order (the
+/// localizer, on what was captured, finds a talker where she spoke from); the recognizer's beam,
+/// straight ahead where the player stands, hears her commands.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_commands() {
+    let server = SoundServer::start_array("array", 4);
+    let text = manifest(
+        &server,
+        "array.monitor",
+        "circular_4",
+        r#", "--echo-cancel", "webrtc", "--residual-echo", "keep""#,
+    );
+    let (launch, bus) = graph("array", &text).await;
+    let audio = Log::follow(&bus, &topics::AUDIO_IN).await;
+    let heard = Log::follow(&bus, &topics::SPEECH_UTTERANCE).await;
+    let geometry = ArrayGeometry::builtin("circular_4").unwrap();
+
+    // The canceller's microphone keeps the array's channels.
+    let sources =
+        String::from_utf8_lossy(&server.pactl(&["list", "short", "sources"]).stdout).to_string();
+    assert!(
+        sources
+            .lines()
+            .any(|l| l.contains("robocog_aec_mic") && l.contains("4ch")),
+        "{sources}"
+    );
+
+    // Someone speaks from 60 degrees to the left: where the captured channels place her.
+    let aside = TalkersRoom {
+        player: voice("en-us+f3", 160, 50),
+        phrases: &["the garden looks lovely after the rain in spring"],
+        player_azimuth_rad: 60f64.to_radians(),
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 0.5,
+        gap_s: 0.5,
+        mic_noise: 30.0,
+        seed: 6,
+    }
+    .render(&geometry)
+    .unwrap();
+    let before = audio.len();
+    play(&server, &aside.pcm.samples);
+    let chunks = audio.all()[before..].to_vec();
+    assert!(!chunks.is_empty());
+    let channels: std::collections::BTreeSet<u16> = chunks.iter().map(|c| c.channels).collect();
+    assert_eq!(channels, [4].into(), "audio/in's channels");
+    let captured: Vec<i16> = chunks.iter().flat_map(|c| c.samples().unwrap()).collect();
+    let mut srp = SrpPhat::new(&geometry, SrpPhat::default_grid()).unwrap();
+    let at = srp
+        .locate(Multichannel::Interleaved(&captured))
+        .unwrap()
+        .expect("a talker in what was captured")
+        .azimuth_rad
+        .to_degrees();
+    assert!((at - 60.0).abs() < 10.0, "located at {at:.0} degrees");
+
+    // The player, straight ahead, says the game's commands.
+    let said: Vec<Command> = Command::of_game(Game::Touch).take(5).collect();
+    let phrases: Vec<&str> = said.iter().map(|c| c.phrase()).collect();
+    let room = TalkersRoom {
+        player: voice("en-gb", 150, 45),
+        phrases: &phrases,
+        player_azimuth_rad: 0.0,
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 1.0,
+        gap_s: 1.5,
+        mic_noise: 30.0,
+        seed: 7,
+    }
+    .render(&geometry)
+    .unwrap();
+    play(&server, &room.pcm.samples);
+    // Until the last command's utterance, or a time-out.
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while commands(&heard.all()).last() != said.last() && std::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    let log = launch.lines.all().join("\n");
+    assert_eq!(commands(&heard.all()), said, "{log}");
+    assert!(
+        log.contains("listening at 0 degrees"),
+        "the recognizer says where it listens:\n{log}"
+    );
+}
+
+/// Play `samples` (4 channels) into the array's sink, returning once they were played.
+fn play(server: &SoundServer, samples: &[i16]) {
+    let seconds = samples.len() as f64 / 4.0 / 16_000.0;
+    server.play(
+        "array",
+        4,
+        &SoundServer::aux_map(4),
+        samples,
+        Duration::from_secs_f64(seconds + 30.0),
+    );
+}
+
+/// The array's geometry says 6 microphones, the source has 4 channels (the wrong source, or the
+/// wrong geometry): `audio_io` says so, counts it on `diagnostics` and goes on in mono, the
+/// channels mixed, and the player's command is still heard.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_array_source_with_other_channels_than_the_geometry_goes_on_in_mono() {
+    let server = SoundServer::start_array("array-mismatch", 4);
+    let text = manifest(&server, "array.monitor", "circular_6", "");
+    let (launch, bus) = graph("array-mismatch", &text).await;
+    let diagnostics = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+    let audio = Log::follow(&bus, &topics::AUDIO_IN).await;
+    let heard = Log::follow(&bus, &topics::SPEECH_UTTERANCE).await;
+    launch
+        .lines
+        .wait_for("the mismatch said", Duration::from_secs(5), |l| {
+            l.contains("has 4 channels, the array circular_6 has 6 microphones")
+        });
+    diagnostics_until(&diagnostics, |d| {
+        d.component == "audio_io" && d.get("array_channel_mismatch") >= 1
+    })
+    .await;
+
+    let phrases = [Command::of_game(Game::Touch).next().unwrap().phrase()];
+    let room = TalkersRoom {
+        player: voice("en-gb", 150, 45),
+        phrases: &phrases,
+        player_azimuth_rad: 0.0,
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 1.0,
+        gap_s: 1.5,
+        mic_noise: 30.0,
+        seed: 8,
+    }
+    .render(&ArrayGeometry::builtin("circular_4").unwrap())
+    .unwrap();
+    play(&server, &room.pcm.samples);
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while commands(&heard.all()).is_empty() && std::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    assert_eq!(
+        commands(&heard.all()),
+        [Command::of_game(Game::Touch).next().unwrap()],
+        "{}",
+        launch.lines.all().join("\n")
+    );
+    assert!(audio.all().iter().all(|c| c.channels == 1));
+}
