@@ -8,6 +8,12 @@
 //!
 //! The text goes in on stdin, so a text starting with `-` is never taken for an option.
 //! espeak-ng 1.51 falls back to its default voice for an unknown voice name without an error.
+//!
+//! A voice named `flite:<name>` (`flite:slt`, `flite:rms`, `flite:awb`, `flite:kal`; `flite -lv`
+//! lists them) is spoken by the `flite` program instead (Debian's `flite`): voices of another
+//! synthesizer family, built from recordings of real speakers, reserved for evaluation (the
+//! speech model is adapted and tuned on espeak-ng alone). Its speed scales flite's durations
+//! against 175 words per minute; its pitch moves flite's mean pitch (50: the voice's own).
 
 use crate::wav::{self, Pcm, WavError};
 use std::io::Write;
@@ -33,7 +39,7 @@ impl Default for Voice {
 
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
-    #[error("cannot run espeak-ng (install the Debian package espeak-ng): {0}")]
+    #[error("cannot run the synthesizer (espeak-ng or flite, Debian packages of those names): {0}")]
     Spawn(std::io::Error),
     #[error("espeak-ng failed: {0}")]
     Failed(String),
@@ -43,10 +49,14 @@ pub enum SynthError {
     Empty,
 }
 
-/// Synthesize `text` with `voice`; the program's native rate (22 050 Hz mono).
+/// Synthesize `text` with `voice`; the program's native rate (22 050 Hz mono for espeak-ng,
+/// 16 000 or 8 000 Hz for flite's voices).
 pub fn synthesize(text: &str, voice: &Voice) -> Result<Pcm, SynthError> {
     if text.trim().is_empty() {
         return Err(SynthError::Empty);
+    }
+    if let Some(name) = voice.voice.strip_prefix("flite:") {
+        return flite(text, name, voice);
     }
     let mut child = Command::new("espeak-ng")
         .args([
@@ -78,6 +88,95 @@ pub fn synthesize(text: &str, voice: &Voice) -> Result<Pcm, SynthError> {
     }
     let pcm = wav::parse(&out.stdout)?;
     Ok(pcm)
+}
+
+/// `text` said by flite's voice `name` (see the module doc), through a WAV file of its own (flite
+/// writes its header after the samples, which a pipe cannot take).
+fn flite(text: &str, name: &str, voice: &Voice) -> Result<Pcm, SynthError> {
+    // flite speaks an unknown voice's text in its default voice, without a word.
+    let known = flite_voices()?;
+    if !known.iter().any(|v| v == name) {
+        return Err(SynthError::Failed(format!(
+            "flite has no voice {name:?} (it has: {})",
+            known.join(", ")
+        )));
+    }
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir();
+    let file = dir.join(format!("robocog-flite-{}-{n}.wav", std::process::id()));
+    let text_file = dir.join(format!("robocog-flite-{}-{n}.txt", std::process::id()));
+    std::fs::write(&text_file, text).map_err(SynthError::Spawn)?;
+    let stretch = 175.0 / f64::from(voice.speed_wpm.clamp(80, 450));
+    let out = Command::new("flite")
+        .args(["-voice", name, "--setf"])
+        .arg(format!("duration_stretch={stretch:.3}"))
+        .arg("-f")
+        .arg(&text_file)
+        .arg("-o")
+        .arg(&file)
+        .stdin(Stdio::null())
+        .output();
+    let _ = std::fs::remove_file(&text_file);
+    let out = out.map_err(|e| {
+        SynthError::Spawn(std::io::Error::new(
+            e.kind(),
+            format!("cannot run flite (install the Debian package flite): {e}"),
+        ))
+    })?;
+    let bytes = std::fs::read(&file);
+    let _ = std::fs::remove_file(&file);
+    if !out.status.success() {
+        return Err(SynthError::Failed(format!(
+            "flite -voice {name}: {}: {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        )));
+    }
+    let bytes = bytes.map_err(|e| {
+        SynthError::Failed(format!(
+            "flite -voice {name} wrote no sound ({e}): is the voice known (flite -lv)?"
+        ))
+    })?;
+    let mut pcm = wav::parse(&bytes)?;
+    if voice.pitch != 50 {
+        // Flite has no pitch setting for every voice: the speech is resampled by the pitch's
+        // ratio and played at the voice's rate, which moves the pitch (and the formants with
+        // it, as a smaller or larger speaker's) and the speed by the same ratio.
+        let ratio = 2f64.powf((f64::from(voice.pitch.min(99)) - 50.0) / 100.0);
+        let rate = pcm.sample_rate_hz;
+        pcm.samples = crate::signal::resample(
+            &pcm.to_mono(),
+            (f64::from(rate) * ratio).round() as u32,
+            rate,
+        );
+        pcm.channels = 1;
+    }
+    Ok(pcm)
+}
+
+/// The voices the `flite` program has (`flite -lv`), asked once.
+fn flite_voices() -> Result<Vec<String>, SynthError> {
+    static VOICES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+    if let Some(v) = VOICES.get() {
+        return Ok(v.clone());
+    }
+    let out = Command::new("flite")
+        .arg("-lv")
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| {
+            SynthError::Spawn(std::io::Error::new(
+                e.kind(),
+                format!("cannot run flite (install the Debian package flite): {e}"),
+            ))
+        })?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let voices: Vec<String> = text
+        .split_once(':')
+        .map(|(_, list)| list.split_whitespace().map(str::to_string).collect())
+        .unwrap_or_default();
+    Ok(VOICES.get_or_init(|| voices).clone())
 }
 
 /// Synthesize and convert to 16 kHz mono (what the recognizer takes).
@@ -140,5 +239,46 @@ mod tests {
             synthesize("  ", &Voice::default()),
             Err(SynthError::Empty)
         ));
+    }
+
+    /// Flite's voices speak (at the asked speed, a higher pitch shorter), each at its own rate,
+    /// and a voice flite does not have is a clear error.
+    #[test]
+    fn flite_speaks_its_voices_and_refuses_one_it_has_not() {
+        let slt = |speed_wpm, pitch| Voice {
+            voice: "flite:slt".into(),
+            speed_wpm,
+            pitch,
+        };
+        let normal = synthesize("-- touch the ball", &slt(175, 50)).unwrap();
+        assert_eq!((normal.sample_rate_hz, normal.channels), (16_000, 1));
+        assert!(
+            normal.duration_s() > 0.5 && normal.duration_s() < 4.0,
+            "{}",
+            normal.duration_s()
+        );
+        let slow = synthesize("touch the ball", &slt(100, 50)).unwrap();
+        assert!(slow.duration_s() > normal.duration_s() * 1.3);
+        let high = synthesize("touch the ball", &slt(175, 80)).unwrap();
+        assert!(high.duration_s() < normal.duration_s() * 0.95);
+        let kal = synthesize_16k(
+            "touch the ball",
+            &Voice {
+                voice: "flite:kal".into(),
+                ..slt(175, 50)
+            },
+        )
+        .unwrap();
+        assert!(crate::signal::active_power(&kal) > 1e-4);
+        let e = synthesize(
+            "touch the ball",
+            &Voice {
+                voice: "flite:nobody".into(),
+                ..slt(175, 50)
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("nobody"), "{e}");
     }
 }
