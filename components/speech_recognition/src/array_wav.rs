@@ -1,6 +1,8 @@
 //! Files in, commands out for a microphone array: the channels of a multichannel recording
 //! beamformed into the one channel the recognizer decodes, steered at a given azimuth or at the
-//! talker the localizer (SRP-PHAT) finds loudest over the recording, with delay-and-sum. (The
+//! talker the localizer (SRP-PHAT) finds loudest over the recording, with the component's own
+//! beam ([`crate::beam::LiveBeam`]: delay-and-sum in 100 ms blocks, each judged hers or someone
+//! else's for the end-pointer), fed in `audio_io`'s 20 ms chunks. (The
 //! library's adaptive beamformer, MVDR, is not used here yet: learning the noise from the blocks
 //! the localizer places elsewhere than the talker gave no command at all on the test's room.)
 //!
@@ -8,7 +10,8 @@
 //! the azimuth is in the array's own frame (`models/arrays/README.md`: 0 straight ahead,
 //! positive to the left).
 
-use audio::array::{ArrayError, ArrayGeometry, DelayAndSum, Multichannel, SrpPhat, direction};
+use crate::beam::{Heard, LiveBeam};
+use audio::array::{ArrayError, ArrayGeometry, Multichannel, SrpPhat};
 use audio::wav::Pcm;
 
 /// The localizer's blocks (s): a syllable or two of one talker.
@@ -36,9 +39,9 @@ pub enum ArrayWavError {
 /// The one channel a beam gave, and where it listened.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Beamformed {
-    /// The enhanced channel at the array's sample rate, aligned with the recording (the
-    /// beamformer's latency removed).
-    pub samples: Vec<i16>,
+    /// The enhanced channel at the array's sample rate in the live beam's blocks, each judged
+    /// hers or someone else's, as the component hears `audio/in` (the beam's latency late).
+    pub heard: Vec<Heard>,
     /// Its rate (the geometry's).
     pub sample_rate_hz: u32,
     /// Where the beam was steered (rad, the array's frame).
@@ -77,30 +80,55 @@ pub fn beamform(
         Some(az) => az,
         None => loudest_talker(&located)?,
     };
-    let steer = direction(azimuth_rad, 0.0);
-    // The beam is `latency` samples late: the recording and as many frames of silence after it
-    // give its whole output, then its first `latency` samples are dropped.
-    let mut input = interleaved;
-    let mut beam = DelayAndSum::new(geometry);
-    beam.steer(steer)?;
-    let latency = beam.latency_samples();
-    input.resize((frames + latency) * channels, 0);
-    let mut out = Vec::with_capacity(frames + latency);
-    beam.process(Multichannel::Interleaved(&input), &mut out)?;
-    out.drain(..latency.min(out.len()));
-    let samples = out
-        .iter()
-        .take(frames)
-        .map(|&x| x.round().clamp(-32768.0, 32767.0) as i16)
+    // In audio_io's 20 ms chunks, through the component's own beam.
+    let mut beam = LiveBeam::new(geometry, azimuth_rad)?;
+    let chunk = (f64::from(rate) * 0.02) as usize * channels;
+    let mut heard: Vec<Heard> = interleaved
+        .chunks(chunk.max(channels))
+        .flat_map(|c| beam.push(c, channels, 0))
         .collect();
+    heard.extend(beam.finish());
+    debug_assert_eq!(heard.iter().map(|h| h.samples.len()).sum::<usize>(), frames);
     Ok(Beamformed {
-        samples,
+        heard,
         sample_rate_hz: rate,
         azimuth_rad,
         located: target_azimuth_rad.is_none(),
         blocks_located,
         blocks,
     })
+}
+
+impl Beamformed {
+    /// The enhanced channel, whole.
+    pub fn samples(&self) -> Vec<i16> {
+        self.heard
+            .iter()
+            .flat_map(|h| h.samples.iter().copied())
+            .collect()
+    }
+
+    /// The blocks the localizer judged someone else's, of all.
+    pub fn elsewhere(&self) -> (usize, usize) {
+        (
+            self.heard.iter().filter(|h| h.elsewhere).count(),
+            self.heard.len(),
+        )
+    }
+}
+
+/// Decode `heard` as the component does: each block pushed with whether its sound came from
+/// elsewhere, then the end of the stream.
+pub fn decode(
+    recognizer: &mut crate::Recognizer,
+    heard: &[Heard],
+) -> Result<Vec<crate::Recognized>, crate::RecognizerError> {
+    let mut out = Vec::new();
+    for h in heard {
+        out.extend(recognizer.push_from(&h.samples, h.elsewhere)?);
+    }
+    out.extend(recognizer.flush()?);
+    Ok(out)
 }
 
 /// Where the localizer places each block's dominant sound (azimuth, rad) and the block's energy;

@@ -23,6 +23,11 @@ use std::time::Duration;
 /// `audio_io`, 100 ms from the simulated person): the longest utterance and its decoding.
 pub const DECODER_BACKLOG_S: f64 = 10.0;
 
+/// A block for the decoder: its samples, when it arrived (the component's clock), when its
+/// first sample was heard (ns, the microphone's time), and whether it came from elsewhere than
+/// the person ([`crate::beam`]).
+type Queued = (Vec<i16>, Moment, i64, bool);
+
 /// The most chunks that may wait for the decoder, however short: 10 s of 2.5 ms chunks.
 const DECODER_BACKLOG_CHUNKS: usize = 4000;
 
@@ -30,7 +35,7 @@ const DECODER_BACKLOG_CHUNKS: usize = 4000;
 /// chunk that would take it over [`DECODER_BACKLOG_S`] (or [`DECODER_BACKLOG_CHUNKS`]) is
 /// dropped and counted.
 struct DecoderQueue {
-    tx: std::sync::mpsc::SyncSender<(Vec<i16>, Moment, i64)>,
+    tx: std::sync::mpsc::SyncSender<Queued>,
     /// Samples sent and not yet taken by the decoder.
     queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
 }
@@ -51,13 +56,13 @@ impl DecoderQueue {
 
 /// The decoder thread's end of a [`DecoderQueue`].
 struct DecoderInbox {
-    rx: std::sync::mpsc::Receiver<(Vec<i16>, Moment, i64)>,
+    rx: std::sync::mpsc::Receiver<Queued>,
     queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
 }
 
 impl DecoderInbox {
     /// The next chunk, blocking; `None` once the queue's sender is gone.
-    fn recv(&self) -> Option<(Vec<i16>, Moment, i64)> {
+    fn recv(&self) -> Option<Queued> {
         let chunk = self.rx.recv().ok()?;
         self.queued
             .fetch_sub(chunk.0.len(), std::sync::atomic::Ordering::Relaxed);
@@ -188,8 +193,8 @@ impl Component for SpeechRecognition {
                 )
                 .map_err(|e| anyhow::anyhow!("--array {name}: {e}"))?;
                 anyhow::ensure!(
-                    config.wav.is_some() || geometry.sample_rate_hz() == RATE_HZ,
-                    "--array {name}: the geometry is for {} Hz; audio/in is heard at {RATE_HZ} Hz",
+                    geometry.sample_rate_hz() == RATE_HZ,
+                    "--array {name}: the geometry is for {} Hz; the recognizer hears at {RATE_HZ} Hz",
                     geometry.sample_rate_hz()
                 );
                 if let Some(deg) = config.target_azimuth_deg {
@@ -333,10 +338,10 @@ fn feed(
     let Some(samples) = chunk.samples() else {
         return Ok(());
     };
-    let (samples, stamp_ns) = match beam {
+    let blocks = match beam {
         Some(beam) if channels > 1 => {
-            let heard = beam.push(&samples, channels);
-            if !heard.beamformed {
+            let blocks = beam.push(&samples, channels, chunk.header.stamp_ns);
+            if blocks.iter().any(|h| !h.beamformed) {
                 let n = bus
                     .counters()
                     .counter("array_channel_mismatch")
@@ -350,7 +355,14 @@ fn feed(
                     );
                 }
             }
-            (heard.samples, chunk.header.stamp_ns - beam.latency_ns())
+            let elsewhere = blocks.iter().filter(|h| h.elsewhere).count() as u64;
+            bus.counters()
+                .counter("array_blocks_elsewhere")
+                .fetch_add(elsewhere, std::sync::atomic::Ordering::Relaxed);
+            blocks
+                .into_iter()
+                .map(|h| (h.samples, h.stamp_ns, h.elsewhere))
+                .collect()
         }
         _ if channels > 1 => {
             let n = bus
@@ -362,13 +374,28 @@ fn feed(
                     "audio/in has {channels} channels: mixed into one (with --array <its geometry> the recognizer beamforms them)"
                 );
             }
-            (
+            vec![(
                 audio::wav::mix_to_mono(&samples, channels),
                 chunk.header.stamp_ns,
-            )
+                false,
+            )]
         }
-        _ => (samples, chunk.header.stamp_ns),
+        _ => vec![(samples, chunk.header.stamp_ns, false)],
     };
+    for (samples, stamp_ns, elsewhere) in blocks {
+        queue(bus, audio_tx, samples, stamp_ns, elsewhere)?;
+    }
+    Ok(())
+}
+
+/// One block of one channel to the decoder, or dropped and counted when it is too far behind.
+fn queue(
+    bus: &Bus,
+    audio_tx: &DecoderQueue,
+    samples: Vec<i16>,
+    stamp_ns: i64,
+    elsewhere: bool,
+) -> anyhow::Result<()> {
     let limit = (DECODER_BACKLOG_S * f64::from(RATE_HZ)) as usize;
     let queued = audio_tx.queued.load(std::sync::atomic::Ordering::Relaxed);
     let n = samples.len();
@@ -377,7 +404,10 @@ fn feed(
         audio_tx
             .queued
             .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
-        match audio_tx.tx.try_send((samples, bus.clock().now(), stamp_ns)) {
+        match audio_tx
+            .tx
+            .try_send((samples, bus.clock().now(), stamp_ns, elsewhere))
+        {
             Ok(()) => false,
             Err(std::sync::mpsc::TrySendError::Full(_)) => {
                 audio_tx
@@ -435,8 +465,15 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
         let pcm =
             audio::wav::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        let samples = match &prepared.array {
-            None => audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ),
+        // The blocks the recognizer hears, each with whether it came from elsewhere.
+        let heard = match &prepared.array {
+            None => vec![crate::beam::Heard {
+                samples: audio::signal::resample(&pcm.to_mono(), pcm.sample_rate_hz, RATE_HZ),
+                stamp_ns: 0,
+                beamformed: false,
+                located_rad: None,
+                elsewhere: false,
+            }],
             Some((geometry, azimuth)) => {
                 let b = crate::array_wav::beamform(&pcm, geometry, *azimuth)
                     .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -455,12 +492,16 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                         "as given".to_string()
                     }
                 );
-                audio::signal::resample(&b.samples, b.sample_rate_hz, RATE_HZ)
+                let (elsewhere, blocks) = b.elsewhere();
+                tracing::info!(
+                    "{}: {elsewhere} of {blocks} blocks of 100 ms came from elsewhere",
+                    path.display()
+                );
+                b.heard
             }
         };
         let (results, rec) = tokio::task::spawn_blocking(move || {
-            let mut v = recognizer.push(&samples)?;
-            v.extend(recognizer.flush()?);
+            let v = crate::array_wav::decode(&mut recognizer, &heard)?;
             anyhow::Ok((v, recognizer))
         })
         .await??;
@@ -492,10 +533,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             let mut heard_s = 0.0;
             // The start of the utterance whose speech was announced.
             let mut announced: Option<f64> = None;
-            while let Some((samples, arrived, stamp_ns)) = audio_rx.recv() {
+            while let Some((samples, arrived, stamp_ns, elsewhere)) = audio_rx.recv() {
                 let dropped_before = recognizer.dropped_short();
                 heard_s += samples.len() as f64 / f64::from(RATE_HZ);
-                match recognizer.push(&samples) {
+                match recognizer.push_from(&samples, elsewhere) {
                     Ok(v) => {
                         let dropped = recognizer.dropped_short() > dropped_before;
                         let mut events = Vec::new();

@@ -301,6 +301,18 @@ impl Recognizer {
         out
     }
 
+    /// [`Recognizer::push`] of samples that come from elsewhere than the person, or not
+    /// ([`crate::vad::Vad::set_elsewhere`]: what comes from elsewhere never opens or stretches an
+    /// utterance).
+    pub fn push_from(
+        &mut self,
+        samples: &[i16],
+        elsewhere: bool,
+    ) -> Result<Vec<Recognized>, RecognizerError> {
+        self.vad.set_elsewhere(elsewhere);
+        self.push(samples)
+    }
+
     /// [`Recognizer::push`] after the offset is removed.
     fn push_centred(&mut self, samples: &[i16]) -> Result<Vec<Recognized>, RecognizerError> {
         let segs = self.vad.push(samples);

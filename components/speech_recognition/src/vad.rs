@@ -34,6 +34,11 @@
 //! `talk_margin_s` of the talk before and after it (the pre-roll and the tail are talk, which a
 //! decoder would take for words). It is marked [`Segment::over_talk`].
 //!
+//! **Sound from elsewhere.** A caller that knows where sounds come from (a microphone array's
+//! localizer, [`crate::beam`]) marks what comes from elsewhere than the person's direction
+//! ([`Vad::set_elsewhere`]): those frames are never loud (they neither open nor stretch an
+//! utterance, and are the background's), however loud they are.
+//!
 //! Times are sample indices on the stream (from 0), so the caller turns them into seconds.
 
 use std::collections::VecDeque;
@@ -156,6 +161,8 @@ pub struct Vad {
     background_sorted: Vec<f64>,
     /// Utterances dropped as too short.
     pub dropped_short: u64,
+    /// Whether what is heard now comes from elsewhere than the person (see the module doc).
+    elsewhere: bool,
 }
 
 /// The level of a frame of digital silence (exact zeros), in dBFS.
@@ -216,7 +223,14 @@ impl Vad {
             background: VecDeque::new(),
             background_sorted: Vec::new(),
             dropped_short: 0,
+            elsewhere: false,
         }
+    }
+
+    /// Whether the frames pushed from now on come from elsewhere than the person (someone
+    /// else's, see the module doc), until said otherwise.
+    pub fn set_elsewhere(&mut self, elsewhere: bool) {
+        self.elsewhere = elsewhere;
     }
 
     /// Add a frame's smoothed level to the background (digital silence too: a room that fell
@@ -440,10 +454,12 @@ impl Vad {
                 self.background_is_talk().unwrap_or(false),
             ),
         };
-        let loud = level > self.cfg.min_level_dbfs
+        let loud = !self.elsewhere
+            && level > self.cfg.min_level_dbfs
             && above >= self.cfg.start_db
             && threshold.is_none_or(|t| level >= t);
-        let still_loud = level > self.cfg.min_level_dbfs
+        let still_loud = !self.elsewhere
+            && level > self.cfg.min_level_dbfs
             && above >= self.cfg.start_db - self.cfg.hysteresis_db
             && threshold.is_none_or(|t| level >= t - self.cfg.hysteresis_db);
 

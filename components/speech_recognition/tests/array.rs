@@ -9,7 +9,7 @@ use audio::array::{ArrayGeometry, sim::TalkersRoom};
 use audio::wav::Pcm;
 use common::voice;
 use interfaces::msg::command::{Command, Game};
-use speech_recognition::array_wav::{ArrayWavError, beamform};
+use speech_recognition::array_wav::{ArrayWavError, Beamformed, beamform};
 use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
 const RATE: usize = 16_000;
@@ -69,6 +69,12 @@ fn decode(samples: &[i16]) -> Vec<Recognized> {
     got
 }
 
+/// What the component hears of a beamformed recording: each block judged hers or not.
+fn decode_heard(b: &Beamformed) -> Vec<Recognized> {
+    let mut rec = Recognizer::shipped(Game::Touch, RecognizerConfig::default()).unwrap();
+    speech_recognition::array_wav::decode(&mut rec, &b.heard).unwrap()
+}
+
 /// How many commands were heard as exactly themselves between their start and the next one's.
 fn right(got: &[Recognized], commands: &[Command], starts: &[usize]) -> usize {
     commands
@@ -107,7 +113,7 @@ fn the_beam_finds_the_player_and_hears_her_over_two_other_talkers() {
         "listening at {:.1} degrees",
         b.azimuth_rad.to_degrees()
     );
-    let got = decode(&b.samples);
+    let got = decode_heard(&b);
     let lead_s = starts[0] as f64 / RATE as f64 - 0.2;
     assert!(
         got.iter()
@@ -115,17 +121,26 @@ fn the_beam_finds_the_player_and_hears_her_over_two_other_talkers() {
         "the talk alone gave a command: {got:#?}"
     );
     let beam_right = right(&got, &commands, &starts);
+    let ungated_right = right(&decode(&b.samples()), &commands, &starts);
     let one: Vec<i16> = pcm.samples.iter().step_by(g.channels()).copied().collect();
     let mic_right = right(&decode(&one), &commands, &starts);
     let away = beamform(&pcm, &g, Some(95f64.to_radians())).unwrap();
     assert!(!away.located);
-    let away_right = right(&decode(&away.samples), &commands, &starts);
+    let away_right = right(&decode(&away.samples()), &commands, &starts);
+    let (elsewhere, blocks) = b.elsewhere();
     eprintln!(
-        "{} commands right: {beam_right} through the beam at {:.1} degrees, {mic_right} through one microphone, {away_right} through the beam steered at another talker",
+        "{} commands right: {beam_right} through the beam at {:.1} degrees with its end-pointer \
+         told what came from elsewhere ({elsewhere} of {blocks} blocks), {ungated_right} through \
+         the beam alone, {mic_right} through one microphone, {away_right} through the beam \
+         steered at another talker",
         commands.len(),
         b.azimuth_rad.to_degrees()
     );
     assert!(beam_right > mic_right, "{beam_right} against {mic_right}");
+    assert!(
+        beam_right >= ungated_right,
+        "{beam_right} against {ungated_right}"
+    );
     assert!(away_right < beam_right, "{away_right} against {beam_right}");
 }
 
@@ -162,5 +177,9 @@ fn a_recording_that_does_not_fit_the_array_is_a_clear_error() {
     };
     let b = beamform(&fast, &g, Some(0.0)).unwrap();
     assert_eq!(b.sample_rate_hz, 16_000);
-    assert!(b.samples.len().abs_diff(16_000) <= 1, "{}", b.samples.len());
+    assert!(
+        b.samples().len().abs_diff(16_000) <= 1,
+        "{}",
+        b.samples().len()
+    );
 }
