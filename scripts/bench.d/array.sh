@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Hearing through a microphone array: the recognizer's chain on a 4-microphone circular array
+# (beamformed at the player, the end-pointer told what comes from elsewhere) against one
+# microphone of the same array, on rooms where two other people talk 10 dB under the player,
+# and on the same rooms with nobody else. The player speaks with flite's voices (evaluation
+# only). `--voices slt,rms` and `--games touch` narrow it. About 10 minutes on two cores.
+set -euo pipefail
+source "$(dirname "$0")/../lib.sh"
+cd "$ROOT"
+need_voice_debs
+step "building the array benchmark (release)"
+cargo build --release --workspace --example bench_array --bin speech_model
+need_speech_model
+step "robocog speech_recognition through a 4-microphone array, against its first microphone alone"
+"$BIN/examples/bench_array" "$@"
