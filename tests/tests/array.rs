@@ -10,7 +10,7 @@
     reason = "process tests wait on real processes, with a time-out on every wait"
 )]
 
-use audio::array::sim::TalkersRoom;
+use audio::array::sim::{RenderedRoom, TalkersRoom};
 use audio::array::{ArrayGeometry, Multichannel, SrpPhat};
 use audio::synth::Voice;
 use interfaces::msg::command::{Command, Game};
@@ -65,6 +65,23 @@ async fn graph(tag: &str, text: &str) -> (Launch, Bus) {
         .await
         .unwrap();
     (launch, bus)
+}
+
+/// The player straight ahead saying `phrases`, 1.5 s apart, nobody else in the room.
+fn player_alone(phrases: &[&str], geometry: &ArrayGeometry, seed: u64) -> RenderedRoom {
+    TalkersRoom {
+        player: voice("en-gb", 150, 45),
+        phrases,
+        player_azimuth_rad: 0.0,
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 1.0,
+        gap_s: 1.5,
+        mic_noise: 30.0,
+        seed,
+    }
+    .render(geometry)
+    .unwrap()
 }
 
 /// The touch game's commands as exactly themselves, each once, in the order heard.
@@ -137,19 +154,7 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
     // The player, straight ahead, says the game's commands.
     let said: Vec<Command> = Command::of_game(Game::Touch).take(5).collect();
     let phrases: Vec<&str> = said.iter().map(|c| c.phrase()).collect();
-    let room = TalkersRoom {
-        player: voice("en-gb", 150, 45),
-        phrases: &phrases,
-        player_azimuth_rad: 0.0,
-        others: vec![],
-        under_db: 0.0,
-        lead_s: 1.0,
-        gap_s: 1.5,
-        mic_noise: 30.0,
-        seed: 7,
-    }
-    .render(&geometry)
-    .unwrap();
+    let room = player_alone(&phrases, &geometry, 7);
     play(&server, &room.pcm.samples);
     // Until the last command's utterance, or a time-out.
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
@@ -198,19 +203,7 @@ async fn an_array_source_with_other_channels_than_the_geometry_goes_on_in_mono()
     .await;
 
     let phrases = [Command::of_game(Game::Touch).next().unwrap().phrase()];
-    let room = TalkersRoom {
-        player: voice("en-gb", 150, 45),
-        phrases: &phrases,
-        player_azimuth_rad: 0.0,
-        others: vec![],
-        under_db: 0.0,
-        lead_s: 1.0,
-        gap_s: 1.5,
-        mic_noise: 30.0,
-        seed: 8,
-    }
-    .render(&ArrayGeometry::builtin("circular_4").unwrap())
-    .unwrap();
+    let room = player_alone(&phrases, &ArrayGeometry::builtin("circular_4").unwrap(), 8);
     play(&server, &room.pcm.samples);
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     while commands(&heard.all()).is_empty() && std::time::Instant::now() < deadline {
