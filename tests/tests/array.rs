@@ -217,3 +217,40 @@ async fn an_array_source_with_other_channels_than_the_geometry_goes_on_in_mono()
     );
     assert!(audio.all().iter().all(|c| c.channels == 1));
 }
+
+/// Flags that cannot work with an array are refused before the component joins the bus (exit
+/// 78, the reason named): an array nobody knows, a rate the geometry is not for, the one-channel
+/// residual-echo suppressor behind the canceller.
+#[test]
+fn array_flags_that_cannot_work_are_refused_at_start() {
+    let server = SoundServer::start_array("array-flags", 4);
+    for (extra, said) in [
+        (&["--array", "circular_9"][..], "circular_9"),
+        (
+            &["--array", "circular_4", "--rate-hz", "48000"][..],
+            "--rate-hz 48000",
+        ),
+        (
+            &["--array", "circular_4", "--echo-cancel", "webrtc"][..],
+            "--residual-echo keep",
+        ),
+    ] {
+        let mut args: Vec<String> = [
+            "--server",
+            &server.address,
+            "--source",
+            "array.monitor",
+            "--sink",
+            "room",
+            "--preflight",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let out = run(&bin("audio_io"), &args, Duration::from_secs(30));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(78), "{extra:?}: {err}");
+        assert!(err.contains(said), "{extra:?}: {err}");
+    }
+}
