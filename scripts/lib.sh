@@ -48,8 +48,8 @@ Install them by hand and run this again: $sudo apt-get install ${missing[*]}"
 need_voice_debs() {
   need_debs libpocketsphinx-dev pocketsphinx-en-us pocketsphinx espeak-ng libespeak-ng-dev sox \
     sphinxtrain sphinxbase-utils
-  # Voices of another synthesizer family, for evaluation only (never adapted or tuned on).
-  need_debs flite
+  # Voices of two other synthesizer families, for evaluation only (never adapted or tuned on).
+  need_debs flite festival festvox-kallpc16k festvox-kdlpc16k festvox-us-slt-hts
   # The microphone and speaker (audio_io, through libpulse) and the sound server the tests
   # start as the room (pulseaudio, with pactl and parec).
   need_debs libpulse-dev pulseaudio pulseaudio-utils

@@ -14,6 +14,11 @@
 //! synthesizer family, built from recordings of real speakers, reserved for evaluation (the
 //! speech model is adapted and tuned on espeak-ng alone). Its speed scales flite's durations
 //! against 175 words per minute; its pitch moves flite's mean pitch (50: the voice's own).
+//!
+//! A voice named `festival:<name>` (`festival:kal_diphone`, `festival:ked_diphone`,
+//! `festival:cmu_us_slt_arctic_hts`: Debian's `festival` with `festvox-kallpc16k`,
+//! `festvox-kdlpc16k`, `festvox-us-slt-hts`) is spoken by festival's `text2wave`: a third family,
+//! also for evaluation only, with speed and pitch as for flite.
 
 use crate::wav::{self, Pcm, WavError};
 use std::io::Write;
@@ -39,7 +44,9 @@ impl Default for Voice {
 
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
-    #[error("cannot run the synthesizer (espeak-ng or flite, Debian packages of those names): {0}")]
+    #[error(
+        "cannot run the synthesizer (espeak-ng, flite or festival, Debian packages of those names): {0}"
+    )]
     Spawn(std::io::Error),
     #[error("espeak-ng failed: {0}")]
     Failed(String),
@@ -57,6 +64,9 @@ pub fn synthesize(text: &str, voice: &Voice) -> Result<Pcm, SynthError> {
     }
     if let Some(name) = voice.voice.strip_prefix("flite:") {
         return flite(text, name, voice);
+    }
+    if let Some(name) = voice.voice.strip_prefix("festival:") {
+        return festival(text, name, voice);
     }
     let mut child = Command::new("espeak-ng")
         .args([
@@ -90,69 +100,153 @@ pub fn synthesize(text: &str, voice: &Voice) -> Result<Pcm, SynthError> {
     Ok(pcm)
 }
 
-/// `text` said by flite's voice `name` (see the module doc), through a WAV file of its own (flite
-/// writes its header after the samples, which a pipe cannot take).
+/// `text` said by flite's voice `name` (see the module doc).
 fn flite(text: &str, name: &str, voice: &Voice) -> Result<Pcm, SynthError> {
     // flite speaks an unknown voice's text in its default voice, without a word.
-    let known = flite_voices()?;
-    if !known.iter().any(|v| v == name) {
-        return Err(SynthError::Failed(format!(
-            "flite has no voice {name:?} (it has: {})",
-            known.join(", ")
-        )));
+    check_known("flite", name, &flite_voices()?, "flite -lv")?;
+    let stretch = stretch(voice);
+    let pcm = through_file("flite", "flite", name, text, |text_file, wav_file| {
+        let mut c = Command::new("flite");
+        c.args(["-voice", name, "--setf"])
+            .arg(format!("duration_stretch={stretch:.3}"))
+            .arg("-f")
+            .arg(text_file)
+            .arg("-o")
+            .arg(wav_file);
+        c
+    })?;
+    Ok(shift_pitch(pcm, voice.pitch))
+}
+
+/// `text` said by festival's voice `name` (see the module doc), through `text2wave`.
+fn festival(text: &str, name: &str, voice: &Voice) -> Result<Pcm, SynthError> {
+    // Festival too speaks an unknown voice's text in its default voice, and exits 0.
+    check_known(
+        "festival",
+        name,
+        &festival_voices()?,
+        "festival's voice.list",
+    )?;
+    let stretch = stretch(voice);
+    let pcm = through_file(
+        "festival",
+        "text2wave",
+        name,
+        text,
+        |text_file, wav_file| {
+            let mut c = Command::new("text2wave");
+            c.arg("-o")
+                .arg(wav_file)
+                .arg("-eval")
+                .arg(format!("(voice_{name})"))
+                .arg("-eval")
+                .arg(format!("(Parameter.set 'Duration_Stretch {stretch:.3})"))
+                .arg(text_file);
+            c
+        },
+    )?;
+    Ok(shift_pitch(pcm, voice.pitch))
+}
+
+/// How much longer than at 175 words per minute `voice` speaks.
+fn stretch(voice: &Voice) -> f64 {
+    175.0 / f64::from(voice.speed_wpm.clamp(80, 450))
+}
+
+fn check_known(family: &str, name: &str, known: &[String], how: &str) -> Result<(), SynthError> {
+    if known.iter().any(|v| v == name) {
+        return Ok(());
     }
+    Err(SynthError::Failed(format!(
+        "{family} has no voice {name:?} (it has: {}; {how} lists them)",
+        known.join(", ")
+    )))
+}
+
+/// Runs `program` (made by `command` from a text file and the WAV file to write) on `text`,
+/// through files of its own (flite writes its header after the samples, which a pipe cannot
+/// take; festival's `text2wave` reads a file), and reads the WAV it wrote. `package` is the
+/// Debian package that has the program.
+fn through_file(
+    package: &str,
+    program: &str,
+    name: &str,
+    text: &str,
+    command: impl FnOnce(&std::path::Path, &std::path::Path) -> Command,
+) -> Result<Pcm, SynthError> {
     static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = std::env::temp_dir();
-    let file = dir.join(format!("robocog-flite-{}-{n}.wav", std::process::id()));
-    let text_file = dir.join(format!("robocog-flite-{}-{n}.txt", std::process::id()));
+    let stem = format!("robocog-{program}-{}-{n}", std::process::id());
+    let file = dir.join(format!("{stem}.wav"));
+    let text_file = dir.join(format!("{stem}.txt"));
     std::fs::write(&text_file, text).map_err(SynthError::Spawn)?;
-    let stretch = 175.0 / f64::from(voice.speed_wpm.clamp(80, 450));
-    let out = Command::new("flite")
-        .args(["-voice", name, "--setf"])
-        .arg(format!("duration_stretch={stretch:.3}"))
-        .arg("-f")
-        .arg(&text_file)
-        .arg("-o")
-        .arg(&file)
-        .stdin(Stdio::null())
-        .output();
+    let out = command(&text_file, &file).stdin(Stdio::null()).output();
     let _ = std::fs::remove_file(&text_file);
     let out = out.map_err(|e| {
         SynthError::Spawn(std::io::Error::new(
             e.kind(),
-            format!("cannot run flite (install the Debian package flite): {e}"),
+            format!("cannot run {program} (install the Debian package {package}): {e}"),
         ))
     })?;
     let bytes = std::fs::read(&file);
     let _ = std::fs::remove_file(&file);
     if !out.status.success() {
         return Err(SynthError::Failed(format!(
-            "flite -voice {name}: {}: {}",
+            "{program} (voice {name}): {}: {}",
             out.status,
             String::from_utf8_lossy(&out.stderr).trim()
         )));
     }
     let bytes = bytes.map_err(|e| {
-        SynthError::Failed(format!(
-            "flite -voice {name} wrote no sound ({e}): is the voice known (flite -lv)?"
-        ))
+        SynthError::Failed(format!("{program} (voice {name}) wrote no sound ({e})"))
     })?;
-    let mut pcm = wav::parse(&bytes)?;
-    if voice.pitch != 50 {
-        // Flite has no pitch setting for every voice: the speech is resampled by the pitch's
-        // ratio and played at the voice's rate, which moves the pitch (and the formants with
-        // it, as a smaller or larger speaker's) and the speed by the same ratio.
-        let ratio = 2f64.powf((f64::from(voice.pitch.min(99)) - 50.0) / 100.0);
-        let rate = pcm.sample_rate_hz;
-        pcm.samples = crate::signal::resample(
-            &pcm.to_mono(),
-            (f64::from(rate) * ratio).round() as u32,
-            rate,
-        );
-        pcm.channels = 1;
+    Ok(wav::parse(&bytes)?)
+}
+
+/// Flite and festival have no pitch setting for every voice: the speech is resampled by the
+/// pitch's ratio (50: unchanged) and played at the voice's rate, which moves the pitch (and the
+/// formants with it, as a smaller or larger speaker's) and the speed by the same ratio.
+fn shift_pitch(mut pcm: Pcm, pitch: u8) -> Pcm {
+    if pitch == 50 {
+        return pcm;
     }
-    Ok(pcm)
+    let ratio = 2f64.powf((f64::from(pitch.min(99)) - 50.0) / 100.0);
+    let rate = pcm.sample_rate_hz;
+    pcm.samples = crate::signal::resample(
+        &pcm.to_mono(),
+        (f64::from(rate) * ratio).round() as u32,
+        rate,
+    );
+    pcm.channels = 1;
+    pcm
+}
+
+/// The voices festival has (`(voice.list)`), asked once.
+fn festival_voices() -> Result<Vec<String>, SynthError> {
+    static VOICES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+    if let Some(v) = VOICES.get() {
+        return Ok(v.clone());
+    }
+    let out = Command::new("festival")
+        .args(["--batch", "(print (voice.list))"])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| {
+            SynthError::Spawn(std::io::Error::new(
+                e.kind(),
+                format!("cannot run festival (install the Debian package festival): {e}"),
+            ))
+        })?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let voices: Vec<String> = text
+        .trim()
+        .trim_start_matches('(')
+        .trim_end_matches(')')
+        .split_whitespace()
+        .map(str::to_string)
+        .collect();
+    Ok(VOICES.get_or_init(|| voices).clone())
 }
 
 /// The voices the `flite` program has (`flite -lv`), asked once.
@@ -280,5 +374,31 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("nobody"), "{e}");
+    }
+
+    /// Festival speaks its voices at the asked speed and at 16 kHz once resampled; a voice it
+    /// does not have is a clear error, not its default voice.
+    #[test]
+    fn festival_speaks_its_voices_and_refuses_one_it_has_not() {
+        let kal = |speed_wpm, name: &str| Voice {
+            voice: format!("festival:{name}"),
+            speed_wpm,
+            pitch: 50,
+        };
+        let normal = synthesize_16k("touch the ball", &kal(175, "kal_diphone")).unwrap();
+        let slow = synthesize_16k("touch the ball", &kal(100, "kal_diphone")).unwrap();
+        assert!(
+            slow.len() as f64 > normal.len() as f64 * 1.3,
+            "{} {}",
+            slow.len(),
+            normal.len()
+        );
+        assert!(crate::signal::active_power(&normal) > 1e-4);
+        let slt = synthesize("touch the ball", &kal(175, "cmu_us_slt_arctic_hts")).unwrap();
+        assert!(slt.duration_s() > 0.5 && slt.duration_s() < 4.0);
+        let e = synthesize("touch the ball", &kal(175, "nobody"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nobody") && e.contains("kal_diphone"), "{e}");
     }
 }
