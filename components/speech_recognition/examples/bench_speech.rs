@@ -12,6 +12,10 @@
 //! both searches fed while the person speaks), in the component's default configuration: the
 //! adapted acoustic model when it is built (`--acoustic-model DIR|stock` to choose), `--denoise`
 //! to add the enhancement. `--conditions clean,babble_10` measures some conditions only.
+//! `--family flite|festival|other` has the commands said by voices of another synthesizer family
+//! (`corpus::OTHER_FAMILY_VOICES`, built from recordings of real speakers) instead of espeak-ng's;
+//! the background talk stays espeak-ng's. `--speeds 175` says every command at that speed only
+//! (of 130, 175, 220 words per minute).
 //!
 //! Figures per game and condition: command accuracy (the clip gave the dialog one command, the
 //! right one, not rejected; other utterances cut from it out of grammar, background talk the
@@ -48,7 +52,7 @@ use speech_recognition::{Recognized, Recognizer, RecognizerConfig};
 
 mod corpus;
 use corpus::{
-    BABBLE_TALKERS, Condition, EVAL_BABBLE, EVAL_VOICES as VOICES, SPEEDS, babble_talkers,
+    BABBLE_TALKERS, Condition, EVAL_BABBLE, EVAL_VOICES, SPEEDS, babble_talkers, family_voices,
     in_condition, speech_end_in, voice,
 };
 
@@ -157,17 +161,44 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .cloned();
     let model = AcousticModel::resolve(model_arg.as_deref()).unwrap();
+    let family = args
+        .iter()
+        .position(|a| a == "--family")
+        .and_then(|i| args.get(i + 1))
+        .map_or("espeak", String::as_str);
+    let voices = family_voices(family)
+        .unwrap_or_else(|| panic!("no voice family {family:?} (espeak, flite, festival or other)"));
+    // The speeds (indices into SPEEDS) every voice says every command at.
+    let speeds: Vec<usize> = match args.iter().position(|a| a == "--speeds") {
+        None => (0..SPEEDS.len()).collect(),
+        Some(i) => args
+            .get(i + 1)
+            .map(String::as_str)
+            .unwrap_or("")
+            .split(',')
+            .map(|w| {
+                SPEEDS
+                    .iter()
+                    .position(|s| s.to_string() == w)
+                    .unwrap_or_else(|| panic!("--speeds: {w:?} is not one of {SPEEDS:?}"))
+            })
+            .collect(),
+    };
     // The adaptation corpus never says a word in an evaluation or tuning voice.
     for v in speech_recognition::adapt::VOICES {
         assert!(
-            !VOICES.contains(&v) && !corpus::TUNE_VOICES.contains(&v),
+            !EVAL_VOICES.contains(&v)
+                && !corpus::TUNE_VOICES.contains(&v)
+                && !corpus::OTHER_FAMILY_VOICES.contains(&v),
             "adaptation voice {v} is an evaluation or tuning voice"
         );
     }
     println!(
-        "configuration: the component's default{}; acoustic model {}",
+        "configuration: the component's default{}; acoustic model {}; the player's voices: {family} ({}) at {:?} words per minute",
         if denoise { " plus --denoise" } else { "" },
-        model.describe()
+        model.describe(),
+        voices.join(", "),
+        speeds.iter().map(|&i| SPEEDS[i]).collect::<Vec<_>>()
     );
     let wav_dir = args
         .iter()
@@ -200,9 +231,10 @@ fn main() {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    // The background talkers: each evaluation voice saying the evaluation's background
-    // sentences (a command's babble is the other voices).
-    let talkers = babble_talkers(&VOICES, EVAL_BABBLE);
+    // The background talkers: each espeak-ng evaluation voice saying the evaluation's
+    // background sentences (a command's babble is the other voices; for another family's
+    // player, the first three).
+    let talkers = babble_talkers(&EVAL_VOICES, EVAL_BABBLE);
     // (ok, n) over both games per condition.
     let mut both: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
     let mut worst_false = (0.0f64, String::new());
@@ -216,8 +248,8 @@ fn main() {
         };
         // The clean speech of every (voice, speed, command), synthesized once.
         let mut said = vec![];
-        for (vi, v) in VOICES.iter().enumerate() {
-            for si in 0..SPEEDS.len() {
+        for (vi, v) in voices.iter().enumerate() {
+            for &si in &speeds {
                 let voice = voice(v, si);
                 for c in Command::of_game(game) {
                     let speech = synthesize_16k(c.phrase(), &voice).unwrap();
@@ -293,7 +325,7 @@ fn main() {
             end_stream(&mut rec, &mut t);
             // Out-of-grammar sentences, each voice, in the same condition.
             for (i, s) in OOG.iter().enumerate() {
-                for (vi, v) in VOICES.iter().enumerate() {
+                for (vi, v) in voices.iter().enumerate() {
                     let voice = audio::synth::Voice {
                         voice: v.to_string(),
                         ..Default::default()
@@ -302,7 +334,7 @@ fn main() {
                     let a = in_condition(
                         &speech,
                         cond,
-                        i * VOICES.len() + vi,
+                        i * voices.len() + vi,
                         &others(&talkers, vi),
                         i as u64 + 100,
                     );
@@ -332,10 +364,11 @@ fn main() {
                     let n = (TALK_ALONE_S * 16_000.0) as usize;
                     // The talk at the level it has under the commands.
                     let p = 10f64.powf(corpus::NOISE_DBFS / 10.0);
-                    let a: Vec<i16> = babble(&others(&talkers, k % VOICES.len()), n, p, &mut rng)
-                        .iter()
-                        .map(|x| x.round().clamp(-32768.0, 32767.0) as i16)
-                        .collect();
+                    let a: Vec<i16> =
+                        babble(&others(&talkers, k % EVAL_VOICES.len()), n, p, &mut rng)
+                            .iter()
+                            .map(|x| x.round().clamp(-32768.0, 32767.0) as i16)
+                            .collect();
                     let got = stream(&mut rec, &a, f64::NAN);
                     t.alone += 1;
                     t.alone_utterances += got.len();
@@ -457,7 +490,7 @@ fn main() {
         std::fs::write(d.join("phrases.tsv"), phrases).unwrap();
     }
     println!(
-        "{{{}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}}}",
+        "{{{}, \"rtf\": {:.4}, \"end_of_speech_to_result_p50_s\": {:.4}, \"end_of_speech_to_result_p90_s\": {:.4}, \"endpoint_hangover_s\": {}, \"acoustic_model_adapted\": {}, \"voice_family\": \"{family}\"}}",
         json.join(", "),
         busy_s / audio_s,
         pct(&lat_all, 0.5),

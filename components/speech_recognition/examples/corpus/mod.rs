@@ -15,6 +15,38 @@ pub const EVAL_VOICES: [&str; 6] = [
     "en-us+m3",
     "en-gb+f4",
 ];
+/// Voices of two other synthesizer families, built from recordings of real speakers: flite's
+/// and festival's (Debian's `flite`, `festival` and its `festvox-*` voices). Evaluation only:
+/// nothing in the project is adapted, tuned or chosen on them.
+pub const OTHER_FAMILY_VOICES: [&str; 7] = [
+    "flite:slt",
+    "flite:rms",
+    "flite:awb",
+    "flite:kal16",
+    "festival:kal_diphone",
+    "festival:ked_diphone",
+    "festival:cmu_us_slt_arctic_hts",
+];
+
+/// The evaluation voices of a synthesizer family: `espeak` ([`EVAL_VOICES`]), `flite`,
+/// `festival`, or `other` (flite's and festival's, [`OTHER_FAMILY_VOICES`]).
+pub fn family_voices(family: &str) -> Option<Vec<&'static str>> {
+    let of = |prefix: &str| {
+        OTHER_FAMILY_VOICES
+            .iter()
+            .copied()
+            .filter(|v| v.starts_with(prefix))
+            .collect()
+    };
+    match family {
+        "espeak" => Some(EVAL_VOICES.to_vec()),
+        "flite" => Some(of("flite:")),
+        "festival" => Some(of("festival:")),
+        "other" => Some(OTHER_FAMILY_VOICES.to_vec()),
+        _ => None,
+    }
+}
+
 /// The tuning voices (`speech_errors tune`), none of them in [`EVAL_VOICES`].
 pub const TUNE_VOICES: [&str; 4] = ["en-gb-x-rp", "en-029", "en-us+m1", "en-gb+f2"];
 /// Speaking rates (words per minute); the `i`-th also sets the pitch (see [`voice`]).
