@@ -6,7 +6,7 @@
 use crate::beam::LiveBeam;
 use crate::confidence::ConfidenceConfig;
 use crate::heard;
-use crate::model::{AcousticModel, adapted_model_dir};
+use crate::model::{AcousticModel, AdaptedOn, adapted_model_dir, adapted_on};
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
 use interfaces::clock::Moment;
@@ -122,10 +122,10 @@ pub struct Config {
     /// before each utterance). Off by default: the acoustic model is not adapted to its output.
     #[arg(long)]
     pub denoise: bool,
-    /// Acoustic model: a PocketSphinx model folder, or `stock` (Debian's en-us). Default:
-    /// `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model built by `speech_model` when there is
-    /// one, else the stock model.
-    #[arg(long, value_name = "DIR|stock")]
+    /// Acoustic model: `stock` (Debian's en-us), `adapted` (the one `speech_model` built), or a
+    /// PocketSphinx model folder. Default: `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model
+    /// when there is one, else the stock model.
+    #[arg(long, value_name = "stock|adapted|DIR")]
     pub acoustic_model: Option<String>,
     /// Filler words of the garbage model that catches out-of-grammar speech, one per line
     /// (default: the shipped `grammars/filler.words`).
@@ -434,31 +434,35 @@ fn queue(
     Ok(())
 }
 
+/// Says which acoustic model decodes, and what else is there and why it is not used.
+fn log_model(model: &AcousticModel) {
+    let cached = adapted_model_dir();
+    let on = |a: AdaptedOn| match a {
+        AdaptedOn::Synthesized => "espeak-ng's voices",
+        AdaptedOn::Recordings => "recordings",
+    };
+    match (model.stock, adapted_on(&cached)) {
+        (false, _) => tracing::info!("acoustic model: {}", model.describe()),
+        (true, Some(a)) => tracing::info!(
+            "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the model adapted on {} at {} is not used",
+            model.describe(),
+            on(a),
+            cached.display()
+        ),
+        (true, None) => tracing::warn!(
+            "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
+            model.describe(),
+            cached.display()
+        ),
+    }
+}
+
 /// Decode `--wav` and return, or listen on `audio/in` until `shutdown`.
 pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow::Result<()> {
     let mut recognizer = prepared.recognizer;
     let out = bus.publisher(&topics::SPEECH_UTTERANCE).await?;
     let activity = bus.publisher(&topics::SPEECH_ACTIVITY).await?;
-    let model = &recognizer.config().acoustic_model;
-    if model.stock
-        && adapted_model_dir()
-            .join(crate::model::PROVENANCE_FILE)
-            .is_file()
-    {
-        tracing::info!(
-            "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the adapted model at {} is not used",
-            model.describe(),
-            adapted_model_dir().display()
-        );
-    } else if model.stock {
-        tracing::warn!(
-            "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
-            model.describe(),
-            adapted_model_dir().display()
-        );
-    } else {
-        tracing::info!("acoustic model: {}", model.describe());
-    }
+    log_model(&recognizer.config().acoustic_model);
     tracing::info!(game = recognizer.game().name(), grammar = %recognizer.grammar().origin.display(), "listening");
     if let Some(path) = prepared.wav {
         let bytes = std::fs::read(&path)

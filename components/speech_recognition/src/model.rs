@@ -1,13 +1,18 @@
 //! Which acoustic model the decoders load.
 //!
 //! Two kinds: PocketSphinx's stock US English model (Debian `pocketsphinx-en-us`), and a copy of
-//! it adapted by [`crate::adapt`] (MAP adaptation to noisy speech, built by the `speech_model`
-//! program). The adapted model is looked for in one place, [`adapted_model_dir`]; the choice is
-//! explicit on the command line (`--acoustic-model`), or made by [`AcousticModel::resolve`]:
+//! it adapted by [`crate::adapt`] (MAP adaptation, built by the `speech_model` program) on a
+//! corpus synthesized with espeak-ng or on recordings of the robot's users. The adapted model is
+//! looked for in one place, [`adapted_model_dir`]; the choice is explicit on the command line
+//! (`--acoustic-model stock|adapted|DIR`), or made by [`AcousticModel::resolve`]:
 //!
-//! 1. `$ROBOCOG_ACOUSTIC_MODEL` (a folder, or `stock`);
+//! 1. `$ROBOCOG_ACOUSTIC_MODEL` (the same three forms);
 //! 2. the adapted model, when [`adapted_model_dir`] holds one;
 //! 3. the stock model (with a warning from the component: noisy commands suffer).
+//!
+//! Its provenance file says what it was adapted on ([`adapted_on`]). A model adapted on the
+//! synthesized corpus knows espeak-ng's voices: on voices of other synthesizer families (flite's,
+//! festival's) it does worse than the stock model (`scripts/bench speech`).
 
 use pocketsphinx_sys_min::decoder::DEBIAN_MODEL_DIR;
 use std::path::{Path, PathBuf};
@@ -32,6 +37,33 @@ pub enum ModelError {
     Incomplete { dir: PathBuf, file: String },
     #[error("acoustic model {0}: no such folder")]
     Missing(PathBuf),
+    #[error(
+        "no adapted acoustic model at {0}: build it with `speech_model` (on the synthesized corpus) or `speech_model --recordings DIR` (on your users' recordings)"
+    )]
+    NotBuilt(PathBuf),
+}
+
+/// What an adapted model was adapted on (its provenance file's `corpus`), for the logs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AdaptedOn {
+    /// The corpus synthesized with espeak-ng.
+    Synthesized,
+    /// Recordings of people.
+    Recordings,
+}
+
+/// What the adapted model in `dir` was adapted on; `None` when `dir` holds no complete adapted
+/// model. A model written before the provenance said (no `corpus`) was adapted on the
+/// synthesized corpus.
+pub fn adapted_on(dir: &Path) -> Option<AdaptedOn> {
+    check_model_dir(dir).ok()?;
+    if !dir.join(PROVENANCE_FILE).is_file() {
+        return None;
+    }
+    Some(match provenance(dir, "corpus").as_deref() {
+        Some("recordings") => AdaptedOn::Recordings,
+        _ => AdaptedOn::Synthesized,
+    })
 }
 
 /// An acoustic model folder, checked to be complete.
@@ -51,21 +83,36 @@ impl AcousticModel {
         }
     }
 
-    /// `spec` is `stock` or a model folder; `None` picks as the module doc says.
+    /// `spec` is `stock`, `adapted` or a model folder; `None` picks as the module doc says.
     pub fn resolve(spec: Option<&str>) -> Result<Self, ModelError> {
         let env = std::env::var("ROBOCOG_ACOUSTIC_MODEL").ok();
         let spec = spec.or(env.as_deref().filter(|s| !s.is_empty()));
         match spec {
             Some("stock") => Ok(Self::stock()),
+            Some("adapted") => Self::at(&adapted_model_dir()).map_err(|e| match e {
+                ModelError::Missing(dir) => ModelError::NotBuilt(dir),
+                e => e,
+            }),
             Some(dir) => Self::at(Path::new(dir)),
             None => {
                 let adapted = adapted_model_dir();
-                if adapted.join(PROVENANCE_FILE).is_file() {
+                if adapted_on(&adapted).is_some() {
                     Self::at(&adapted)
                 } else {
                     Ok(Self::stock())
                 }
             }
+        }
+    }
+
+    /// What [`Self::resolve`] picks without a command-line choice, in the form it takes:
+    /// `stock`, `adapted`, or the folder `$ROBOCOG_ACOUSTIC_MODEL` names.
+    pub fn default_spec() -> String {
+        match Self::resolve(None) {
+            Ok(m) if m.stock => "stock".into(),
+            Ok(m) if m.dir == adapted_model_dir() => "adapted".into(),
+            Ok(m) => m.dir.display().to_string(),
+            Err(_) => "stock".into(),
         }
     }
 
@@ -170,5 +217,27 @@ mod tests {
         std::fs::remove_dir_all(&d).unwrap();
         let e = AcousticModel::resolve(Some(d.to_str().unwrap())).unwrap_err();
         assert_eq!(e, ModelError::Missing(d));
+    }
+
+    /// What a model was adapted on is read from its provenance; a model from before the
+    /// provenance said is the synthesized one; an incomplete folder is no model.
+    #[test]
+    fn what_a_model_was_adapted_on_is_read_from_its_provenance() {
+        let d = std::env::temp_dir().join(format!("robocog-model-on-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        for f in MODEL_FILES.iter().chain(&["sendump"]) {
+            std::fs::write(d.join(f), b"x").unwrap();
+        }
+        assert_eq!(adapted_on(&d), None, "no provenance: not an adapted model");
+        let prov = d.join(PROVENANCE_FILE);
+        std::fs::write(&prov, r#"{"recipe": "1", "summary": "old"}"#).unwrap();
+        assert_eq!(adapted_on(&d), Some(AdaptedOn::Synthesized));
+        std::fs::write(&prov, r#"{"recipe": "1", "corpus": "synthesized"}"#).unwrap();
+        assert_eq!(adapted_on(&d), Some(AdaptedOn::Synthesized));
+        std::fs::write(&prov, r#"{"recipe": "1", "corpus": "recordings"}"#).unwrap();
+        assert_eq!(adapted_on(&d), Some(AdaptedOn::Recordings));
+        std::fs::remove_file(d.join("means")).unwrap();
+        assert_eq!(adapted_on(&d), None, "an incomplete folder is no model");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

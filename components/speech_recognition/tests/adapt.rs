@@ -1,7 +1,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // a test fails by panicking
-//! `speech_model`: adapting the acoustic model on a folder of recordings, and what bad
-//! recordings get. The synthesized corpus is built by `scripts/test` itself (it is the model the
-//! other tests use); these tests use small corpora so they run in seconds.
+//! `speech_model`: adapting the acoustic model on a folder of recordings, which model the
+//! recognizer then loads by default, and what bad recordings get. The synthesized corpus is
+//! built by `scripts/test` itself (it is the model the other tests use); these tests use small
+//! corpora so they run in seconds.
 
 mod common;
 
@@ -67,6 +68,7 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
         serde_json::from_str(&std::fs::read_to_string(out.join(PROVENANCE_FILE)).unwrap()).unwrap();
     assert_eq!(prov["utterances"], i);
     assert!(prov["summary"].as_str().unwrap().contains("recordings"));
+    assert_eq!(prov["corpus"], "recordings");
     // Built from the same recordings: up to date, nothing to do.
     assert!(
         speech_model(&["--out", o, "--recordings", r, "--check"])
@@ -77,6 +79,29 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
     assert!(String::from_utf8_lossy(&again.stderr).contains("up to date"));
     // Another recipe (the synthesized corpus) is not what is there.
     assert!(!speech_model(&["--out", o, "--check"]).status.success());
+
+    // In the cache, the model is the recognizer's default, unless the environment asks for the
+    // stock one; a folder without a whole model is no default.
+    let cache = dir.join("cache");
+    let cached = cache.join("robocog/speech/en-us-adapted");
+    std::fs::create_dir_all(&cached).unwrap();
+    for f in std::fs::read_dir(&out).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, cached.join(f.file_name().unwrap())).unwrap();
+    }
+    let which = |env: &str| {
+        let out = Process::new(env!("CARGO_BIN_EXE_speech_model"))
+            .arg("--which")
+            .env("XDG_CACHE_HOME", &cache)
+            .env("ROBOCOG_ACOUSTIC_MODEL", env)
+            .output()
+            .expect("speech_model runs");
+        String::from_utf8_lossy(&out.stdout).trim().to_string()
+    };
+    assert_eq!(which(""), "adapted");
+    assert_eq!(which("stock"), "stock");
+    std::fs::remove_file(cached.join("means")).unwrap();
+    assert_eq!(which(""), "stock");
 
     let model = AcousticModel::resolve(Some(o)).unwrap();
     assert!(!model.stock);

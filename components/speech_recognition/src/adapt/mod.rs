@@ -608,6 +608,11 @@ pub fn build(
     };
     let provenance = serde_json::json!({
         "recipe": recipe.fingerprint(),
+        // What `model::adapted_on` reads: only a model adapted on people is the default.
+        "corpus": match &recipe.corpus {
+            Corpus::Synthesized => "synthesized",
+            Corpus::Recordings(_) => "recordings",
+        },
         "recipe_version": RECIPE_VERSION,
         "summary": summary,
         "base": recipe.base.display().to_string(),

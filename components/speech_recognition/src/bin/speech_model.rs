@@ -32,10 +32,18 @@ struct Args {
     /// Only say whether the model is up to date (exit 0) or not (exit 1).
     #[arg(long)]
     check: bool,
+    /// Only print which model `speech_recognition` loads without `--acoustic-model`: `stock`,
+    /// `adapted`, or the folder `$ROBOCOG_ACOUSTIC_MODEL` names.
+    #[arg(long)]
+    which: bool,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if args.which {
+        println!("{}", AcousticModel::default_spec());
+        return ExitCode::SUCCESS;
+    }
     let out = args.out.clone().unwrap_or_else(adapted_model_dir);
     let recipe = Recipe {
         corpus: match &args.recordings {
