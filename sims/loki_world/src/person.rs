@@ -356,8 +356,10 @@ pub async fn run(
                 }
                 Step::Expect(e) => {
                     let mut repeats_left = e.repeat;
+                    let mut answered = 0;
+                    let mut started = clock.now();
                     loop {
-                        let started = clock.now();
+                        let deadline = started + Duration::from_secs_f64(e.timeout_s);
                         match expect(
                             &bus,
                             &cfg,
@@ -367,11 +369,33 @@ pub async fn run(
                             &seen,
                             &ball,
                             &now_s,
+                            deadline,
+                            last_said.as_deref().map(|t| (t, answered)),
                             &mut shutdown,
                         )
                         .await?
                         {
-                            Ok(figures) => {
+                            Waited::Asked => {
+                                answered += 1;
+                                say(
+                                    &speech_tx,
+                                    &voice,
+                                    "yes",
+                                    true,
+                                    &seen,
+                                    &clock,
+                                    &mut shutdown,
+                                )
+                                .await?;
+                                println!(
+                                    "person: answers yes to the robot's question about {:?}",
+                                    last_said.as_deref().unwrap_or_default()
+                                );
+                                // The answer gives the robot the expectation's whole time again.
+                                started = clock.now();
+                                continue;
+                            }
+                            Waited::Seen(figures) => {
                                 if let Some(d) = figures.hand_to_ball_m {
                                     outcome.closest_hand_to_ball_m = Some(
                                         outcome.closest_hand_to_ball_m.map_or(d, |c: f64| c.min(d)),
@@ -394,7 +418,7 @@ pub async fn run(
                                 });
                                 break;
                             }
-                            Err(why) => {
+                            Waited::Timeout(why) => {
                                 if repeats_left > 0
                                     && let Some(text) = &last_said
                                 {
@@ -417,6 +441,8 @@ pub async fn run(
                                     .await?;
                                     action_end = clock.now();
                                     last_action = (n, format!("says {text:?}"));
+                                    started = clock.now();
+                                    answered = 0;
                                     continue;
                                 }
                                 anyhow::bail!(
@@ -593,7 +619,31 @@ impl Figures {
     }
 }
 
-/// Wait for `e`; `Ok(Ok(figures))` when it holds, `Ok(Err(what was seen))` at the time-out.
+/// What came of waiting for an expectation.
+enum Waited {
+    /// It holds, with what was measured.
+    Seen(Figures),
+    /// The robot asks "Did you say ...?" about what she said last, and she has not answered it
+    /// yet: she answers, and waits on.
+    Asked,
+    /// The time-out, with what was seen instead.
+    Timeout(String),
+}
+
+/// Whether the robot, since `mark`, asked about `said` (her last words) more often than the
+/// `answered` times she answered.
+fn asked_about(s: &Seen, mark: Moment, said: &str, answered: usize) -> bool {
+    let question = format!("did you say {}", said.to_lowercase());
+    s.said
+        .iter()
+        .filter(|(t, x)| *t >= mark && x.contains(&question))
+        .count()
+        > answered
+}
+
+/// Wait for `e` until `deadline`. `question`: her last words and how many times she answered the
+/// robot's question about them: asked again, she answers "yes" (a person who said it would),
+/// unless the question is what she waits for.
 #[allow(clippy::too_many_arguments)]
 async fn expect(
     bus: &Bus,
@@ -604,10 +654,11 @@ async fn expect(
     seen: &Mutex<Seen>,
     ball: &Mutex<Ball>,
     now_s: impl Fn() -> f64,
+    deadline: Moment,
+    question: Option<(&str, usize)>,
     shutdown: &mut interfaces::node::Shutdown,
-) -> anyhow::Result<Result<Figures, String>> {
+) -> anyhow::Result<Waited> {
     let clock = bus.clock();
-    let deadline = clock.now() + Duration::from_secs_f64(e.timeout_s);
     let radius = sc.ball.diameter_m / 2.0;
     let mut last_geometry = String::new();
     loop {
@@ -681,7 +732,12 @@ async fn expect(
             }
         }
         if ok {
-            return Ok(Ok(figures));
+            return Ok(Waited::Seen(figures));
+        }
+        if let Some((said, answered)) = question
+            && asked_about(&lock(seen), mark, said, answered)
+        {
+            return Ok(Waited::Asked);
         }
         if clock.now() >= deadline {
             let s = lock(seen);
@@ -703,7 +759,7 @@ async fn expect(
                 .filter(|(t, _)| *t >= mark)
                 .map(|(_, k)| ball_event_name(*k))
                 .collect();
-            return Ok(Err(format!(
+            return Ok(Waited::Timeout(format!(
                 "seen instead: robot said {said:?}; active states {:?}; arm {reach:?}; ball events {events:?}{}{last_geometry}",
                 s.active,
                 if last_geometry.is_empty() { "" } else { "; " }

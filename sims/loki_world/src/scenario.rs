@@ -25,6 +25,8 @@
 //! - `pause_s`: do nothing for that long.
 //! - `expect`: wait until a condition holds, at most `timeout_s` (default 20 s); on time-out the
 //!   person repeats the last thing she said, `repeat` times (default 0), then the scenario fails.
+//!   While she waits, a robot that asks "Did you say <her last words>?" gets a "yes", and the
+//!   wait starts again (unless that question is what she waits for).
 //!   Conditions, all of which must hold at once:
 //!   - `robot_said`: the robot started saying something containing these words (case-insensitive)
 //!     since the last `say` or `ball` step;
