@@ -64,3 +64,32 @@ fn chain_values_come_from_the_measured_joints() {
     measured.remove("neck_pitch");
     assert_eq!(chain_q(&chain, &measured).unwrap_err(), "neck_pitch");
 }
+
+/// `--joint-range JOINT=LOWER:UPPER`: spaces around the parts are forgiven; a value without its
+/// joint, its `=`, its `:` or a number is refused with the form it expects. (Whether the range
+/// fits the joint, NaN included, is `robot_model::narrow_limits`' to say, at start.)
+#[test]
+fn a_joint_range_flag_is_parsed_or_refused_with_the_form_it_expects() {
+    assert_eq!(
+        parse_joint_range("base_forward=0:0.2"),
+        Ok(("base_forward".to_string(), 0.0, 0.2))
+    );
+    assert_eq!(
+        parse_joint_range(" base_yaw = -0.5 : 0.5 "),
+        Ok(("base_yaw".to_string(), -0.5, 0.5))
+    );
+    for bad in [
+        "base_forward",
+        "base_forward=0.2",
+        "=0:0.2",
+        "base_forward=a:0.2",
+        "base_forward=0:",
+        "",
+    ] {
+        let e = parse_joint_range(bad).unwrap_err();
+        assert!(
+            e.contains("JOINT=LOWER:UPPER") && e.contains(&format!("`{bad}`")),
+            "{bad:?}: {e}"
+        );
+    }
+}
