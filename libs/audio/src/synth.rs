@@ -222,24 +222,29 @@ fn shift_pitch(mut pcm: Pcm, pitch: u8) -> Pcm {
     pcm
 }
 
+/// What `program` (from the Debian package `package`) prints on its standard output.
+fn ask(program: &str, package: &str, args: &[&str]) -> Result<String, SynthError> {
+    let out = Command::new(program)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| {
+            SynthError::Spawn(std::io::Error::new(
+                e.kind(),
+                format!("cannot run {program} (install the Debian package {package}): {e}"),
+            ))
+        })?;
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
 /// The voices festival has (`(voice.list)`), asked once.
 fn festival_voices() -> Result<Vec<String>, SynthError> {
     static VOICES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
     if let Some(v) = VOICES.get() {
         return Ok(v.clone());
     }
-    let out = Command::new("festival")
-        .args(["--batch", "(print (voice.list))"])
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| {
-            SynthError::Spawn(std::io::Error::new(
-                e.kind(),
-                format!("cannot run festival (install the Debian package festival): {e}"),
-            ))
-        })?;
-    let text = String::from_utf8_lossy(&out.stdout);
-    let voices: Vec<String> = text
+    let out = ask("festival", "festival", &["--batch", "(print (voice.list))"])?;
+    let voices: Vec<String> = out
         .trim()
         .trim_start_matches('(')
         .trim_end_matches(')')
@@ -255,18 +260,8 @@ fn flite_voices() -> Result<Vec<String>, SynthError> {
     if let Some(v) = VOICES.get() {
         return Ok(v.clone());
     }
-    let out = Command::new("flite")
-        .arg("-lv")
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| {
-            SynthError::Spawn(std::io::Error::new(
-                e.kind(),
-                format!("cannot run flite (install the Debian package flite): {e}"),
-            ))
-        })?;
-    let text = String::from_utf8_lossy(&out.stdout);
-    let voices: Vec<String> = text
+    let out = ask("flite", "flite", &["-lv"])?;
+    let voices: Vec<String> = out
         .split_once(':')
         .map(|(_, list)| list.split_whitespace().map(str::to_string).collect())
         .unwrap_or_default();
