@@ -102,6 +102,19 @@ fn recordings_adapt_a_model_the_recognizer_loads() {
     assert_eq!(which("stock"), "stock");
     std::fs::remove_file(cached.join("means")).unwrap();
     assert_eq!(which(""), "stock");
+    // Asked for by name where there is none, the adapted model is a clear error at start.
+    let empty = dir.join("empty-cache");
+    let asked = Process::new(env!("CARGO_BIN_EXE_speech_recognition"))
+        .args(["--acoustic-model", "adapted", "--wav", "/nonexistent.wav"])
+        .env("XDG_CACHE_HOME", &empty)
+        .output()
+        .expect("speech_recognition runs");
+    let err = String::from_utf8_lossy(&asked.stderr);
+    assert_eq!(asked.status.code(), Some(78), "{err}");
+    assert!(
+        err.contains("no adapted acoustic model") && err.contains("speech_model"),
+        "{err}"
+    );
 
     let model = AcousticModel::resolve(Some(o)).unwrap();
     assert!(!model.stock);
