@@ -234,9 +234,10 @@ impl Readers {
 /// Whether a launcher is stopping the graph of the bus's namespace: it declares a
 /// [`stopping_key`] token before it stops the first component, so that the others do not take
 /// their neighbours' leaving for a failure (a dialog would tell the person it cannot hear her
-/// while the game shuts down). The token reaches every component before any component's own
-/// token vanishes: the launcher stops the first component only once its router has the token,
-/// and the router forwards in order.
+/// while the game shuts down). The launcher stops the first component only once its router has
+/// the token, but a component may still see a neighbour leave a few milliseconds before it sees
+/// the token (seen in the dialog, under load): act on a neighbour's leaving after a short grace,
+/// as the dialog does (`dialogs::component::UNHEARD_GRACE_S`).
 pub struct Stopping {
     rx: tokio::sync::watch::Receiver<bool>,
     _subscriber: zenoh::pubsub::Subscriber<()>,

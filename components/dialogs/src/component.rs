@@ -67,31 +67,40 @@ pub struct Hold {
 }
 
 /// Whether the person can be heard. Once a recognizer was there, its going away is said
-/// ([`CANNOT_HEAR`]), and its return ([`HEAR_AGAIN`]); a dialog that never saw one says nothing.
+/// ([`CANNOT_HEAR`]) when it has been gone [`UNHEARD_GRACE_S`], and its return ([`HEAR_AGAIN`]);
+/// a dialog that never saw one says nothing.
 #[derive(Debug, Default)]
 pub struct Hearing {
     seen: bool,
     deaf: bool,
+    /// Since when (s) nothing has heard the person, not said yet.
+    gone_since: Option<f64>,
 }
 
+/// How long (s) nothing must have heard the person before the robot says so. The launcher's
+/// word that the graph stops reaches the dialog on a path of its own, and may come a few
+/// milliseconds after the recognizer's leaving; a recognizer restarted by the launcher takes
+/// longer than this to come back.
+pub const UNHEARD_GRACE_S: f64 = 0.5;
+
 impl Hearing {
-    /// With a recognizer `present` now: what to say, if anything.
-    pub fn update(&mut self, present: bool) -> Option<&'static str> {
-        match (present, self.deaf) {
-            (true, true) => {
-                self.deaf = false;
-                Some(HEAR_AGAIN)
-            }
-            (true, false) => {
-                self.seen = true;
-                None
-            }
-            (false, false) if self.seen => {
-                self.deaf = true;
-                Some(CANNOT_HEAR)
-            }
-            _ => None,
+    /// At `now` (s), with a recognizer `present`: what to say, if anything. Called again while
+    /// it is not present (on every tick), so that its absence is said once it has lasted.
+    pub fn update(&mut self, now: f64, present: bool) -> Option<&'static str> {
+        if present {
+            self.seen = true;
+            self.gone_since = None;
+            return std::mem::take(&mut self.deaf).then_some(HEAR_AGAIN);
         }
+        if !self.seen || self.deaf {
+            return None;
+        }
+        let since = *self.gone_since.get_or_insert(now);
+        (now - since >= UNHEARD_GRACE_S).then(|| {
+            self.deaf = true;
+            self.gone_since = None;
+            CANNOT_HEAR
+        })
     }
 }
 
@@ -271,7 +280,7 @@ pub async fn run(
                     "the graph is stopping: the recognizer or the microphone leaving is not said"
                 );
             }
-        } else if let Some(line) = hearing.update(heard) {
+        } else if let Some(line) = hearing.update(now(), heard) {
             tracing::warn!(
                 "{}",
                 if line == CANNOT_HEAR && !recognizer {
@@ -420,15 +429,29 @@ mod tests {
     fn the_robot_says_when_it_cannot_hear_and_when_it_hears_again() {
         let mut h = Hearing::default();
         assert_eq!(
-            h.update(false),
+            h.update(0.0, false),
             None,
             "never heard: nothing to say at start"
         );
-        assert_eq!(h.update(true), None);
-        assert_eq!(h.update(true), None);
-        assert_eq!(h.update(false), Some(CANNOT_HEAR));
-        assert_eq!(h.update(false), None, "said once");
-        assert_eq!(h.update(true), Some(HEAR_AGAIN));
-        assert_eq!(h.update(true), None);
+        assert_eq!(h.update(0.1, true), None);
+        assert_eq!(h.update(0.2, true), None);
+        assert_eq!(h.update(1.0, false), None, "gone for less than the grace");
+        assert_eq!(h.update(1.0 + UNHEARD_GRACE_S / 2.0, false), None);
+        assert_eq!(h.update(1.0 + UNHEARD_GRACE_S, false), Some(CANNOT_HEAR));
+        assert_eq!(h.update(2.0 + UNHEARD_GRACE_S, false), None, "said once");
+        assert_eq!(h.update(3.0, true), Some(HEAR_AGAIN));
+        assert_eq!(h.update(3.1, true), None);
+    }
+
+    #[test]
+    fn a_recognizer_back_within_the_grace_is_not_spoken_of() {
+        let mut h = Hearing::default();
+        assert_eq!(h.update(0.0, true), None);
+        assert_eq!(h.update(1.0, false), None);
+        assert_eq!(h.update(1.0 + UNHEARD_GRACE_S * 0.9, true), None);
+        // A later absence has its own grace, from its own start.
+        assert_eq!(h.update(5.0, false), None);
+        assert_eq!(h.update(5.0 + UNHEARD_GRACE_S * 0.9, false), None);
+        assert_eq!(h.update(5.0 + UNHEARD_GRACE_S, false), Some(CANNOT_HEAR));
     }
 }
