@@ -729,8 +729,8 @@ pub(crate) async fn component_tokens(
 /// Waits (at most 2 s) until the router has the launcher's liveliness token `key`. The launcher
 /// is a client of its router: a declared token is on its way there, not there yet, and a
 /// component stopped at once could leave before it. A query for the token over the same link is
-/// answered after the router took the declaration, so it reaches every component before the
-/// first component's own token vanishes.
+/// answered after the router took the declaration. (Components may still see a neighbour leave
+/// just before the token: see `interfaces::liveliness::Stopping`.)
 #[expect(
     clippy::disallowed_methods,
     reason = "a transport time-out, on the wall as zenoh's own query time-out is"
