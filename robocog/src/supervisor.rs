@@ -728,9 +728,9 @@ pub(crate) async fn component_tokens(
 
 /// Waits (at most 2 s) until the router has the launcher's liveliness token `key`. The launcher
 /// is a client of its router: a declared token is on its way there, not there yet, and a
-/// component stopped at once could leave before it. A query for the token over the same link is
-/// answered after the router took the declaration. (Components may still see a neighbour leave
-/// just before the token: see `interfaces::liveliness::Stopping`.)
+/// component stopped at once could leave before it. A query for the token over the same link
+/// ends after the router took the declaration. (Components may still see a neighbour leave just
+/// before the token: see `interfaces::liveliness::Stopping`.)
 #[expect(
     clippy::disallowed_methods,
     reason = "a transport time-out, on the wall as zenoh's own query time-out is"
@@ -739,12 +739,15 @@ async fn router_has(session: &zenoh::Session, key: &str) {
     const WAIT: std::time::Duration = std::time::Duration::from_secs(2);
     let seen = async {
         let replies = session.liveliness().get(key).timeout(WAIT).await.ok()?;
+        // Every reply, to the query's end: the launcher's own session answers at once, the
+        // router once it has the token, and the query ends when the router is done. (Stopping
+        // at the first reply did not wait for the router, and its reply then fell on a dropped
+        // channel: an ERROR in the launcher's log at every stop.)
+        let mut seen = false;
         while let Ok(reply) = replies.recv_async().await {
-            if reply.result().is_ok() {
-                return Some(());
-            }
+            seen |= reply.result().is_ok();
         }
-        None
+        seen.then_some(())
     };
     if tokio::time::timeout(WAIT, seen)
         .await

@@ -672,6 +672,13 @@ async fn a_graph_that_stops_does_not_tell_the_person_it_cannot_hear() {
         "the robot said {lines:?} as the graph stopped:\n{}",
         launch.lines.all().join("\n")
     );
+    // Nothing went wrong: a stop logs no error, in the launcher or in a component.
+    let all = launch.lines.all();
+    assert!(
+        !all.iter().any(|l| l.contains(" ERROR ")),
+        "an error logged as the graph stopped:\n{}",
+        all.join("\n")
+    );
 }
 
 /// The next thing the robot is asked to say, within `timeout`.
