@@ -61,9 +61,10 @@ need_camera_debs() {
   need_debs libfreenect0.5 libfreenect-dev
 }
 
-# The adapted acoustic model the speech recognizer prefers (components/speech_recognition,
-# `speech_model`): built into ~/.cache/robocog/speech/ when missing or when its recipe changed
-# (about 9 minutes on two cores), otherwise left alone.
+# The acoustic model adapted on the synthesized voices (components/speech_recognition,
+# `speech_model`), which the speech recognizer's tests use (the recognizer's default is the stock
+# model, which hears people better): built into ~/.cache/robocog/speech/ when missing or when its
+# recipe changed (about 9 minutes on two cores), otherwise left alone.
 need_speech_model() {
   STEP_HINT="$CARGO_HINT"
   (cd "$ROOT" && cargo build --release --workspace --quiet --bin speech_model)
@@ -71,28 +72,6 @@ need_speech_model() {
     step "adapting the speech recognizer's acoustic model to noisy speech (speech_model, ~9 min)"
     "$BIN/speech_model"
   fi
-}
-
-# For the main job: the first game never waits for the adapted model. When it is missing or out
-# of date, it is made in the background at the lowest CPU priority (once: a second run finds it
-# under way), its log in the cache, and this game uses the stock model (the recognizer says which
-# model it loaded); the next game uses the adapted one.
-speech_model_in_background() {
-  STEP_HINT="$CARGO_HINT"
-  (cd "$ROOT" && cargo build --release --workspace --quiet --bin speech_model)
-  if "$BIN/speech_model" --check >/dev/null 2>&1; then
-    return 0
-  fi
-  local cache="${XDG_CACHE_HOME:-$HOME/.cache}/robocog"
-  mkdir -p "$cache"
-  local log="$cache/speech-model.log" lock="$cache/speech-model.lock"
-  export ROBOCOG_ACOUSTIC_MODEL=stock
-  if command -v flock >/dev/null && ! flock -n "$lock" true; then
-    step "the adapted speech model is being made in the background (log: $log); this game uses the stock model"
-    return 0
-  fi
-  step "the adapted speech model is not made yet: making it in the background at the lowest priority (about 7 minutes on two cores; log: $log); this game uses the stock model, the next one the adapted model"
-  setsid flock "$lock" nice -n 19 "$BIN/speech_model" >"$log" 2>&1 </dev/null &
 }
 
 # Everything the workspace's build scripts and links need (pkg-config, the voice and camera

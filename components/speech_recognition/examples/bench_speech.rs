@@ -243,8 +243,7 @@ fn main() {
         // acoustic model and optionally the enhancement.
         let cfg = RecognizerConfig {
             denoise: denoise.then(Default::default),
-            acoustic_model: model.clone(),
-            ..RecognizerConfig::default()
+            ..RecognizerConfig::for_model(model.clone())
         };
         // The clean speech of every (voice, speed, command), synthesized once.
         let mut said = vec![];

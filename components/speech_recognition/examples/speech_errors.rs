@@ -8,8 +8,8 @@
 //! `speech_errors <touch|coach> <tune|eval> <condition>...`, a condition as the benchmark names
 //! it (`clean`, `10` for white noise at 10 dB, `reverb`, `babble_10`, `fan_10`).
 //!
-//! Environment: `PS_ARGS` ("-name value ..." decoder options, e.g. `-hmm DIR` for another
-//! acoustic model), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
+//! Environment: `MODEL` (`stock`, `adapted` or a folder: the acoustic model, with its confidence
+//! calibration), `PS_ARGS` ("-name value ..." decoder options), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
 //! `ROBUST=0` (PocketSphinx's own noise settings), `DENOISE=1` (the enhancement; `GFLOOR`,
 //! `OVERSUB` tune it), `TALK_BETA`, `TALK_SCALE` (the confidence over talk), `VERBOSE` (list
 //! every error; `VERBOSE=all` every utterance, with its ratio `d` and SNR), `OOG=1` (also
@@ -92,10 +92,13 @@ fn main() {
             dc.extra_args.push((p[0].into(), p[1].into()));
         }
     }
+    let model =
+        speech_recognition::model::AcousticModel::resolve(std::env::var("MODEL").ok().as_deref())
+            .unwrap();
     let mut cfg = RecognizerConfig {
         noise_robust: std::env::var("ROBUST").as_deref() != Ok("0"),
         denoise: (std::env::var("DENOISE").as_deref() == Ok("1")).then(Default::default),
-        ..RecognizerConfig::default()
+        ..RecognizerConfig::for_model(model)
     };
     if let Some(h) = std::env::var("HANGOVER").ok().and_then(|s| s.parse().ok()) {
         cfg.vad.hangover_s = h;

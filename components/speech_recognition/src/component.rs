@@ -109,11 +109,13 @@ pub struct Config {
     pub hangover_s: f64,
     /// Confidence: acoustic scale of the N-best softmax (smaller spreads the confidence over
     /// competing sentences; see the library's `confidence` module).
-    #[arg(long, default_value_t = ConfidenceConfig::default().acoustic_scale)]
-    pub confidence_scale: f64,
+    /// Default: the calibration of the acoustic model in use.
+    #[arg(long)]
+    pub confidence_scale: Option<f64>,
     /// Confidence: garbage penalty in nats per 10 ms frame (larger favours the commands).
-    #[arg(long, default_value_t = ConfidenceConfig::default().garbage_penalty)]
-    pub garbage_penalty: f64,
+    /// Default: the calibration of the acoustic model in use.
+    #[arg(long)]
+    pub garbage_penalty: Option<f64>,
     /// Noise settings for the decoder: wider beams, no PocketSphinx voice detection (the
     /// end-pointer's cut is decoded whole). `--noise-robust false` for PocketSphinx's defaults.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
@@ -124,7 +126,8 @@ pub struct Config {
     pub denoise: bool,
     /// Acoustic model: `stock` (Debian's en-us), `adapted` (the one `speech_model` built), or a
     /// PocketSphinx model folder. Default: `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model
-    /// when there is one, else the stock model.
+    /// when `speech_model` built it on recordings of people, else the stock model (a model
+    /// adapted on the synthesized voices hears people worse than the stock one).
     #[arg(long, value_name = "stock|adapted|DIR")]
     pub acoustic_model: Option<String>,
     /// Filler words of the garbage model that catches out-of-grammar speech, one per line
@@ -236,17 +239,21 @@ pub fn recognizer(config: &Config) -> anyhow::Result<Recognizer> {
         .clone()
         .unwrap_or_else(|| crate::grammar::grammar_dir().join(format!("{}.gram", game.name())));
     let acoustic_model = AcousticModel::resolve(config.acoustic_model.as_deref())?;
+    let fitted = RecognizerConfig::for_model(acoustic_model);
     let cfg = RecognizerConfig {
-        acoustic_model,
         vad: VadConfig {
             start_db: config.start_db,
             hangover_s: config.hangover_s,
             ..VadConfig::default()
         },
         confidence: ConfidenceConfig {
-            acoustic_scale: config.confidence_scale,
-            garbage_penalty: config.garbage_penalty,
-            ..ConfidenceConfig::default()
+            acoustic_scale: config
+                .confidence_scale
+                .unwrap_or(fitted.confidence.acoustic_scale),
+            garbage_penalty: config
+                .garbage_penalty
+                .unwrap_or(fitted.confidence.garbage_penalty),
+            ..fitted.confidence
         },
         fillers: Some(
             config
@@ -256,7 +263,7 @@ pub fn recognizer(config: &Config) -> anyhow::Result<Recognizer> {
         ),
         noise_robust: config.noise_robust,
         denoise: config.denoise.then(crate::denoise::DenoiseConfig::default),
-        ..RecognizerConfig::default()
+        ..fitted
     };
     Ok(Recognizer::new(game, &grammar, cfg)?)
 }
@@ -443,17 +450,19 @@ fn log_model(model: &AcousticModel) {
     };
     match (model.stock, adapted_on(&cached)) {
         (false, _) => tracing::info!("acoustic model: {}", model.describe()),
-        (true, Some(a)) => tracing::info!(
+        (true, Some(AdaptedOn::Recordings)) => tracing::info!(
             "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the model adapted on {} at {} is not used",
             model.describe(),
-            on(a),
+            on(AdaptedOn::Recordings),
             cached.display()
         ),
-        (true, None) => tracing::warn!(
-            "acoustic model: {}; no adapted model at {} (build it with `speech_model`): noisy commands are recognized much worse",
+        (true, Some(AdaptedOn::Synthesized)) => tracing::info!(
+            "acoustic model: {}; the model adapted on {} at {} is used only when asked for (--acoustic-model adapted): it hears those voices, not people",
             model.describe(),
+            on(AdaptedOn::Synthesized),
             cached.display()
         ),
+        (true, None) => tracing::info!("acoustic model: {}", model.describe()),
     }
 }
 

@@ -7,12 +7,13 @@
 //! (`--acoustic-model stock|adapted|DIR`), or made by [`AcousticModel::resolve`]:
 //!
 //! 1. `$ROBOCOG_ACOUSTIC_MODEL` (the same three forms);
-//! 2. the adapted model, when [`adapted_model_dir`] holds one;
-//! 3. the stock model (with a warning from the component: noisy commands suffer).
+//! 2. the adapted model, when [`adapted_model_dir`] holds one adapted on recordings of people;
+//! 3. the stock model.
 //!
 //! Its provenance file says what it was adapted on ([`adapted_on`]). A model adapted on the
-//! synthesized corpus knows espeak-ng's voices: on voices of other synthesizer families (flite's,
-//! festival's) it does worse than the stock model (`scripts/bench speech`).
+//! synthesized corpus knows espeak-ng's voices, not people: on voices of other synthesizer
+//! families (flite's, festival's) it does worse than the stock model, by 10 to 24 points
+//! (`scripts/bench speech`), so it is used only when asked for.
 
 use pocketsphinx_sys_min::decoder::DEBIAN_MODEL_DIR;
 use std::path::{Path, PathBuf};
@@ -96,7 +97,7 @@ impl AcousticModel {
             Some(dir) => Self::at(Path::new(dir)),
             None => {
                 let adapted = adapted_model_dir();
-                if adapted_on(&adapted).is_some() {
+                if adapted_on(&adapted) == Some(AdaptedOn::Recordings) {
                     Self::at(&adapted)
                 } else {
                     Ok(Self::stock())
@@ -236,6 +237,25 @@ mod tests {
         assert_eq!(adapted_on(&d), Some(AdaptedOn::Synthesized));
         std::fs::write(&prov, r#"{"recipe": "1", "corpus": "recordings"}"#).unwrap();
         assert_eq!(adapted_on(&d), Some(AdaptedOn::Recordings));
+        // Each kind of model is judged with the confidence calibration fitted for its kind.
+        use crate::confidence::ConfidenceConfig;
+        let adapted = AcousticModel::at(&d).unwrap();
+        assert_eq!(
+            ConfidenceConfig::for_model(&adapted),
+            ConfidenceConfig::ADAPTED
+        );
+        assert_eq!(
+            ConfidenceConfig::for_model(&AcousticModel::stock()),
+            ConfidenceConfig::STOCK
+        );
+        assert_ne!(ConfidenceConfig::STOCK, ConfidenceConfig::ADAPTED);
+        std::fs::remove_file(d.join(PROVENANCE_FILE)).unwrap();
+        let unknown = AcousticModel::at(&d).unwrap();
+        assert_eq!(
+            ConfidenceConfig::for_model(&unknown),
+            ConfidenceConfig::STOCK,
+            "a model of unknown making is judged as the stock one"
+        );
         std::fs::remove_file(d.join("means")).unwrap();
         assert_eq!(adapted_on(&d), None, "an incomplete folder is no model");
         std::fs::remove_dir_all(&d).unwrap();

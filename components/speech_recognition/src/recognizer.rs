@@ -101,10 +101,19 @@ pub struct RecognizerConfig {
 }
 
 impl Default for RecognizerConfig {
+    /// With the model [`AcousticModel::preferred`] picks.
     fn default() -> Self {
+        Self::for_model(AcousticModel::preferred())
+    }
+}
+
+impl RecognizerConfig {
+    /// The defaults, with `model` and the confidence calibration fitted for it
+    /// ([`ConfidenceConfig::for_model`]).
+    pub fn for_model(model: AcousticModel) -> Self {
         Self {
             vad: VadConfig::default(),
-            confidence: ConfidenceConfig::default(),
+            confidence: ConfidenceConfig::for_model(&model),
             fillers: Some(crate::garbage::filler_file()),
             filler_weight: 1.0,
             nbest: NBEST,
@@ -114,7 +123,7 @@ impl Default for RecognizerConfig {
             noise_robust: true,
             noise_lead_s: 0.2,
             pronunciations: Some(crate::garbage::pronunciations_file()),
-            acoustic_model: AcousticModel::preferred(),
+            acoustic_model: model,
         }
     }
 }

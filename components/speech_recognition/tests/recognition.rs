@@ -8,19 +8,22 @@ use audio::signal::gain_clipped;
 use common::*;
 use interfaces::msg::command::{Command, Game};
 use speech_recognition::grammar::{Grammar, grammar_dir};
+use speech_recognition::model::AcousticModel;
 use speech_recognition::{Recognizer, RecognizerConfig, RecognizerError};
 use std::collections::HashSet;
 
-/// The component's default configuration, which these tests' thresholds are for: on the
-/// adapted acoustic model (`scripts/test` builds it).
+/// The adapted acoustic model, which these tests' thresholds are for, with its calibration
+/// (`scripts/test` builds it).
 fn recognizer(game: Game) -> Recognizer {
-    let cfg = RecognizerConfig::default();
-    assert!(
-        !cfg.acoustic_model.stock,
-        "these tests expect the adapted acoustic model (run scripts/test, or speech_model, first): {}",
-        cfg.acoustic_model.describe()
-    );
-    Recognizer::shipped(game, cfg).unwrap()
+    Recognizer::shipped(game, adapted()).unwrap()
+}
+
+/// The adapted model's configuration.
+fn adapted() -> RecognizerConfig {
+    let model = AcousticModel::resolve(Some("adapted")).unwrap_or_else(|e| {
+        panic!("these tests expect the adapted acoustic model (run scripts/test, or speech_model, first): {e}")
+    });
+    RecognizerConfig::for_model(model)
 }
 
 #[test]
@@ -503,7 +506,7 @@ fn commands_said_over_other_people_talking_are_heard() {
                 })
                 .count()
         };
-        let cfg = RecognizerConfig::default();
+        let cfg = adapted();
         let got = run(cfg.clone());
         assert!(
             got.iter()
