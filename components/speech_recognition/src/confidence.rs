@@ -215,12 +215,6 @@ impl ConfidenceConfig {
     }
 }
 
-impl Default for ConfidenceConfig {
-    fn default() -> Self {
-        Self::ADAPTED
-    }
-}
-
 /// What the two searches say about an utterance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Verdict {
