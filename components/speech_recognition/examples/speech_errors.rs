@@ -9,7 +9,8 @@
 //! it (`clean`, `10` for white noise at 10 dB, `reverb`, `babble_10`, `fan_10`).
 //!
 //! Environment: `MODEL` (`stock`, `adapted` or a folder: the acoustic model, with its confidence
-//! calibration), `PS_ARGS` ("-name value ..." decoder options), `HANGOVER`, `MIN_SPEECH` (s), `START_DB`, `START_FRAMES` (end-pointer),
+//! calibration), `PS_ARGS` ("-name value ..." decoder options), `HANGOVER`, `MIN_SPEECH` (s),
+//! `START_DB`, `START_FRAMES` (end-pointer),
 //! `ROBUST=0` (PocketSphinx's own noise settings), `DENOISE=1` (the enhancement; `GFLOOR`,
 //! `OVERSUB` tune it), `TALK_BETA`, `TALK_SCALE` (the confidence over talk), `VERBOSE` (list
 //! every error; `VERBOSE=all` every utterance, with its ratio `d` and SNR), `OOG=1` (also

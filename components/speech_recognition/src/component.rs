@@ -444,22 +444,16 @@ fn queue(
 /// Says which acoustic model decodes, and what else is there and why it is not used.
 fn log_model(model: &AcousticModel) {
     let cached = adapted_model_dir();
-    let on = |a: AdaptedOn| match a {
-        AdaptedOn::Synthesized => "espeak-ng's voices",
-        AdaptedOn::Recordings => "recordings",
-    };
     match (model.stock, adapted_on(&cached)) {
         (false, _) => tracing::info!("acoustic model: {}", model.describe()),
         (true, Some(AdaptedOn::Recordings)) => tracing::info!(
-            "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the model adapted on {} at {} is not used",
+            "acoustic model: {}, as asked (--acoustic-model or ROBOCOG_ACOUSTIC_MODEL); the model adapted on recordings at {} is not used",
             model.describe(),
-            on(AdaptedOn::Recordings),
             cached.display()
         ),
         (true, Some(AdaptedOn::Synthesized)) => tracing::info!(
-            "acoustic model: {}; the model adapted on {} at {} is used only when asked for (--acoustic-model adapted): it hears those voices, not people",
+            "acoustic model: {}; the model adapted on espeak-ng's voices at {} is used only when asked for (--acoustic-model adapted): it hears those voices, not people",
             model.describe(),
-            on(AdaptedOn::Synthesized),
             cached.display()
         ),
         (true, None) => tracing::info!("acoustic model: {}", model.describe()),
