@@ -28,14 +28,17 @@ fn voice(name: &str, speed_wpm: u32, pitch: u8) -> Voice {
 }
 
 /// The recognizer and the microphone on the sound server `server`, both given `--array
-/// array`, the microphone on `source` with `more` flags of its own.
+/// array`, the microphone on `source` with `more` flags of its own. The talkers are espeak-ng
+/// voices and every command they say must be heard: the recognizer decodes with the model
+/// adapted on those voices (the default, stock, model hears them less surely; its figures on
+/// them are `scripts/bench speech`'s).
 fn manifest(server: &SoundServer, source: &str, array: &str, more: &str) -> String {
     format!(
         r#"
 [[component]]
 name = "speech_recognition"
 binary = "{}"
-args = ["--game", "touch", "--array", "{array}"]
+args = ["--game", "touch", "--array", "{array}", "--acoustic-model", "adapted"]
 
 [[component]]
 name = "audio_io"

@@ -4,7 +4,8 @@
 //! it adapted by [`crate::adapt`] (MAP adaptation, built by the `speech_model` program) on a
 //! corpus synthesized with espeak-ng or on recordings of the robot's users. The adapted model is
 //! looked for in one place, [`adapted_model_dir`]; the choice is explicit on the command line
-//! (`--acoustic-model stock|adapted|DIR`), or made by [`AcousticModel::resolve`]:
+//! (`--acoustic-model stock|adapted|DIR`), or made by [`AcousticModel::resolve`] (no flag, or
+//! `auto`):
 //!
 //! 1. `$ROBOCOG_ACOUSTIC_MODEL` (the same three forms);
 //! 2. the adapted model, when [`adapted_model_dir`] holds one adapted on recordings of people;
@@ -75,6 +76,9 @@ pub struct AcousticModel {
     pub stock: bool,
 }
 
+/// The choice that leaves it to [`AcousticModel::resolve`], as a launch file spells it.
+pub const AUTO: &str = "auto";
+
 impl AcousticModel {
     /// The stock Debian model.
     pub fn stock() -> Self {
@@ -84,10 +88,13 @@ impl AcousticModel {
         }
     }
 
-    /// `spec` is `stock`, `adapted` or a model folder; `None` picks as the module doc says.
+    /// `spec` is `stock`, `adapted` or a model folder; `None` (or `auto`, a launch file's way of
+    /// naming no choice) picks as the module doc says.
     pub fn resolve(spec: Option<&str>) -> Result<Self, ModelError> {
         let env = std::env::var("ROBOCOG_ACOUSTIC_MODEL").ok();
-        let spec = spec.or(env.as_deref().filter(|s| !s.is_empty()));
+        let spec = spec
+            .filter(|s| *s != AUTO)
+            .or(env.as_deref().filter(|s| !s.is_empty() && *s != AUTO));
         match spec {
             Some("stock") => Ok(Self::stock()),
             Some("adapted") => Self::at(&adapted_model_dir()).map_err(|e| match e {
