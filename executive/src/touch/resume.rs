@@ -48,6 +48,11 @@ pub struct Resume {
     pub arm: Arm,
     /// The last goal id used.
     pub last_goal_id: u64,
+    /// The reach under way moves the base too (the arm alone could not reach the ball): taken
+    /// up, it goes on with the base, and the base goes home with the arm. (Absent from the
+    /// records of older releases: false.)
+    #[serde(default)]
+    pub with_base: bool,
     /// The stamps of the last commands acted on (`interfaces::outbox::Handled`): one sent again
     /// after a restart is known and not carried out twice.
     #[serde(default)]
@@ -83,6 +88,7 @@ impl TouchGame {
                 Arm::AtRest
             },
             last_goal_id: self.ctx.next_id,
+            with_base: self.ctx.with_base,
             handled: self.handled.stamps(),
         })
     }
@@ -109,6 +115,7 @@ impl TouchGame {
             out.extend(quiet(self.send("command:scan_ball", Input::None, now)));
         }
         self.resume_touch = record.arm == Arm::AtTheBall;
+        self.ctx.with_base = self.resume_touch && record.with_base;
         out.outputs.push(Output::Say {
             text: BACK.into(),
             priority: Priority::High,

@@ -1114,6 +1114,35 @@ fn a_restarted_executive_reaches_again_once_it_sees_the_ball_when_the_arm_was_at
 }
 
 #[test]
+fn a_restarted_executive_reaches_again_with_the_base_when_the_reach_had_turned_it() {
+    let (mut g, id) = reaching();
+    let o = g.reach_status(&status(id, ReachState::Unreachable), t(5.0));
+    assert_eq!(reaches(&o)[0].body_part, "left_arm_9");
+    let (mut fresh, _) = restarted(&g, 6.0);
+    fresh.ball_track(&track([0.6, 0.1, 0.78]), t(6.4));
+    let o = fresh.ball_event(&ball(BallEventKind::Detected), t(6.5));
+    let arm: Vec<_> = reaches(&o)
+        .into_iter()
+        .filter(|r| r.body_part != "neck")
+        .collect();
+    assert_eq!(arm.len(), 1, "{o:?}");
+    assert_eq!(arm[0].body_part, "left_arm_9", "the base goes on turning");
+    // And it goes home with the arm.
+    let o = fresh.command(&cmd(Command::YouTouchedIt), t(8.0));
+    let home = homes(&o);
+    assert!(
+        home[0].targets.iter().any(|t| t.joint == "base_yaw"),
+        "{home:?}"
+    );
+    // A record of an older release, without the field, reads as an arm-only reach.
+    let mut json: serde_json::Value =
+        serde_json::from_str(&g.resume_record().unwrap().to_json()).unwrap();
+    json.as_object_mut().unwrap().remove("with_base");
+    let old = resume::Resume::from_json(&json.to_string()).unwrap();
+    assert!(!old.with_base);
+}
+
+#[test]
 fn a_restarted_executive_leaves_a_homing_arm_at_rest_and_a_finished_game_leaves_no_record() {
     let (mut g, arm_goal) = reaching();
     g.reach_status(&status(arm_goal, ReachState::Reached), t(5.0));
