@@ -6,7 +6,8 @@
 // field is sent (the page's target is printed for the robot-side check) and the coach status
 // shows it as the last command; the spoken answer appears; a click off the carpet is refused
 // with its reason; bad input over a raw WebSocket is refused and the server keeps serving; a
-// status that stops updating is greyed out; screenshots of both views.
+// status that stops updating is greyed out; the talk key (V, the button, a page that goes while
+// holding it); screenshots of both views.
 import { launch, report, fail, arg, until, clickField } from './lib.mjs';
 
 const url = arg('url');
@@ -146,6 +147,47 @@ try {
   // The page itself is still connected and the refusals are in its history.
   const refusals = await page.$$eval('#history li[data-status="refused"]', (l) => l.length);
   if (refusals < 4) fail(`expected at least 4 refused entries in the history, got ${refusals}`);
+
+  // 5a. Push-to-talk: V held, then the button held, send the talk key down, again every 0.5 s
+  // while held, and up; a raw socket that holds the key and goes away has it let up by the
+  // server (the Rust side checks what reached speech/talk).
+  const talkHeld = async () => page.$eval('#talk', (b) => b.classList.contains('held'));
+  await page.keyboard.down('v');
+  await until('the talk button to show the key held', 2000, talkHeld);
+  await page.waitForTimeout(1300); // a command's length
+  await page.keyboard.up('v');
+  await until('the talk key up', 2000, async () => !(await talkHeld()));
+  const box = await page.locator('#talk').boundingBox();
+  await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await page.mouse.down();
+  await until('the talk button held', 2000, talkHeld);
+  await page.waitForTimeout(1300);
+  await page.mouse.up();
+  await until('the talk button up', 2000, async () => !(await talkHeld()));
+  const rawTalk = await page.evaluate(async () => {
+    const ws = await new Promise((res, rej) => {
+      const w = new WebSocket(`ws://${location.host}/ws${location.search}`);
+      w.onopen = () => res(w);
+      w.onerror = () => rej(new Error('cannot open'));
+    });
+    const r = await new Promise((res) => {
+      ws.addEventListener('message', (ev) => {
+        if (typeof ev.data !== 'string') return;
+        const m = JSON.parse(ev.data);
+        if (m.type === 'reply') res(m);
+      });
+      ws.send('{"id": 90, "type": "talk", "held": true}');
+    });
+    ws.close();
+    return r;
+  });
+  if (!rawTalk.ok || rawTalk.id !== 90) fail(`the raw talk key: ${JSON.stringify(rawTalk)}`);
+  const talks = await until('the talk key six times in the history', 5000, async () => {
+    const l = await page.$$eval('#history li', (li) => li.map((x) => x.textContent));
+    const t = l.filter((x) => x.includes('talk key'));
+    return t.length >= 6 && t;
+  });
+  report('talk', { history: talks });
 
   // 5b. Stale status is greyed out: move the page's estimate of the panel's clock 10 s ahead, as
   // if coach/status had stopped arriving 10 s ago (the next render uses it), then put it back.

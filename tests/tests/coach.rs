@@ -15,7 +15,8 @@
 //! 6. The teammate falls (SIGUSR2): a pass becomes a dribble, said so.
 //! 7. A pass from the bus: the robot passes to the teammate, who scores.
 //!
-//! Then a lost link and a penalty, and the faults: in each test one component of the graph is
+//! Then a lost link and a penalty; push-to-talk (only what is said while the operator holds the
+//! talk key is heard); and the faults: in each test one component of the graph is
 //! killed (SIGKILL) in the middle of an attempt (see "Faults" below).
 //!
 //! Needs the workspace's binaries built and `espeak-ng` installed.
@@ -1474,4 +1475,120 @@ async fn words_the_dialog_never_acted_on_are_carried_out_after_its_restart() {
             println!("{l}");
         }
     }
+}
+
+/// Push-to-talk, as in a RoboCup hall (`push_to_talk=true`): a command said while the operator
+/// does not hold the talk key is the hall's talk, never decoded; the command she says while
+/// holding it (the panel's key, sent again every half second, as the page does) is carried out.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn with_push_to_talk_only_what_is_said_while_the_key_is_held_is_heard() {
+    use interfaces::msg::command::{Command, CommandSource, GameCommand};
+    use interfaces::msg::speech::{TALK_KEY_REPEAT_S, TalkKey, Utterance};
+    let ns = unique_namespace("talk");
+    let launch = launch_coach(
+        &ns,
+        // The coach is an espeak-ng voice here: the model adapted on those voices hears her.
+        &["push_to_talk=true".into(), "acoustic_model=adapted".into()],
+        &["speech_recognition", "dialogs", "executive"],
+    );
+    launch
+        .lines
+        .wait_for("push-to-talk", Duration::from_secs(10), |l| {
+            l.contains("speech_recognition |") && l.contains("push-to-talk: only what is heard")
+        });
+    let bus = Bus::open(&launch.connect_args(), "test-talk")
+        .await
+        .unwrap();
+    let heard = Log::<Utterance>::follow(&bus, &topics::SPEECH_UTTERANCE).await;
+    let commands = Log::<GameCommand>::follow(&bus, &topics::GAME_COMMAND).await;
+    let says = Log::<SayRequest>::follow(&bus, &topics::SPEECH_SAY).await;
+    let audio = bus.publisher(&topics::AUDIO_IN).await.unwrap();
+    let talk = bus.publisher(&topics::SPEECH_TALK).await.unwrap();
+    let answers = bus.publisher(&topics::GAME_ANSWER).await.unwrap();
+    let key = |held: bool| TalkKey {
+        held,
+        source: "test".into(),
+        ..TalkKey::default()
+    };
+    // A "Did you say ...?" is answered yes, as from the panel.
+    {
+        let says = says.0.clone();
+        tokio::spawn(async move {
+            let mut seen = 0;
+            loop {
+                let asks: Vec<_> = says.lock().unwrap().iter().skip(seen).cloned().collect();
+                seen += asks.len();
+                for a in asks {
+                    if a.text.to_lowercase().contains("did you say") {
+                        let _ = answers
+                            .publish(&mut Answer {
+                                yes: true,
+                                ..Default::default()
+                            })
+                            .await;
+                    }
+                }
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        });
+    }
+
+    // Someone near the microphone says a command; nobody holds the key.
+    say_into_the_microphone(&audio, Command::Kick.phrase()).await;
+
+    // The operator holds the key (sent again while held), says hers, and lets go.
+    let (stop, mut stopped) = tokio::sync::watch::channel(false);
+    let holder = {
+        let talk = bus.publisher(&topics::SPEECH_TALK).await.unwrap();
+        let down = key(true);
+        tokio::spawn(async move {
+            loop {
+                // Each a fresh copy: the bus stamps it with when it is sent.
+                talk.publish(&mut down.clone()).await.unwrap();
+                tokio::select! {
+                    _ = tokio::time::sleep(Duration::from_secs_f64(TALK_KEY_REPEAT_S)) => {}
+                    _ = stopped.changed() => return,
+                }
+            }
+        })
+    };
+    launch
+        .lines
+        .wait_for("the key down", Duration::from_secs(10), |l| {
+            l.contains("speech_recognition |") && l.contains("talk key down (test)")
+        });
+    say_into_the_microphone(&audio, Command::Pass.phrase()).await;
+    stop.send(true).unwrap();
+    holder.await.unwrap();
+    talk.publish(&mut key(false)).await.unwrap();
+
+    // Hers is heard.
+    let pass = heard
+        .wait_from("her command", 0, Duration::from_secs(30), |u| {
+            u.command == Command::Pass
+        })
+        .await;
+    commands
+        .wait_from("her command carried out", 0, Duration::from_secs(30), |c| {
+            c.command == Command::Pass && c.source == CommandSource::Voice
+        })
+        .await;
+    launch
+        .lines
+        .wait_for("the key up", Duration::from_secs(10), |l| {
+            l.contains("speech_recognition |") && l.contains("talk key up (test)")
+        });
+    // The audio is heard in order: by the time hers was decoded, the other command had been
+    // heard too, and it opened no utterance at all.
+    let utterances: Vec<(String, Command)> = heard
+        .all()
+        .iter()
+        .map(|u| (u.text.clone(), u.command))
+        .collect();
+    assert_eq!(utterances.len(), 1, "heard {utterances:?} (hers: {pass:?})");
+    assert!(
+        commands.all().iter().all(|c| c.command != Command::Kick),
+        "a command said without the key was carried out: {:?}",
+        commands.all()
+    );
 }

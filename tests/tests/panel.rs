@@ -147,6 +147,7 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
     let nao_commands = bus.subscriber(&topics::NAO_COMMAND).await.unwrap();
     let answers = bus.subscriber(&topics::GAME_ANSWER).await.unwrap();
     let diag = bus.subscriber(&topics::DIAGNOSTICS).await.unwrap();
+    let talk = bus.subscriber(&topics::SPEECH_TALK).await.unwrap();
 
     // What the panel asks (coach requests, game commands) and what the Executive says.
     let requests = bus.subscriber(&topics::COACH_REQUEST).await.unwrap();
@@ -323,6 +324,7 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
         "refused_target",
         "raw_websocket",
         "coach_stale",
+        "talk",
         "touch",
         "done",
     ] {
@@ -373,6 +375,28 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
     );
     let answer = answers.try_recv().expect("the yes answer on game/answer");
     assert!(answer.yes);
+
+    // The talk key, as it went: held with V (1.3 s), held with the button (1.3 s), held by a
+    // socket that went away. Each hold is sent at once and again every 0.5 s, and ends with the
+    // key up: the last one from the server, for the socket that did not say so.
+    let mut keys = Vec::new();
+    while let Some(k) = talk.try_recv() {
+        assert_eq!(k.source, "panel");
+        keys.push(k.held);
+    }
+    let mut runs: Vec<(bool, usize)> = Vec::new();
+    for held in keys {
+        match runs.last_mut() {
+            Some((h, n)) if *h == held => *n += 1,
+            _ => runs.push((held, 1)),
+        }
+    }
+    let shape: Vec<bool> = runs.iter().map(|r| r.0).collect();
+    assert_eq!(shape, [true, false, true, false, true, false], "{runs:?}");
+    assert!(
+        runs[0].1 >= 2 && runs[2].1 >= 2,
+        "no repeats while held: {runs:?}"
+    );
 
     // Refusals counted on diagnostics.
     let deadline = tokio::time::Instant::now() + Duration::from_secs(5);

@@ -62,6 +62,9 @@ fn nao_shortcut(body: NaoBody, head: NaoHead) -> Option<&'static str> {
     }
 }
 
+/// The talk key, held while speaking to a recognizer in push-to-talk mode, in both views.
+pub const TALK_SHORTCUT: &str = "v";
+
 /// The catalog the page builds its buttons from (sent in the `hello` message).
 pub fn catalog_json() -> Value {
     let game = |g: Game, shortcut: fn(Command) -> Option<&'static str>| -> Vec<Value> {
@@ -109,6 +112,7 @@ pub fn catalog_json() -> Value {
         "nao_bodies": bodies,
         "nao_heads": heads,
         "strategies": strategies,
+        "talk": { "shortcut": TALK_SHORTCUT },
         "field": {
             "half_length_mm": crate::protocol::FIELD_HALF_LENGTH_MM,
             "half_width_mm": crate::protocol::FIELD_HALF_WIDTH_MM,
@@ -160,7 +164,7 @@ mod tests {
         }
         assert_eq!(cat["strategies"].as_array().map(Vec::len), Some(2));
         for view in [&["coach", "nao_bodies", "nao_heads"][..], &["touch"][..]] {
-            let mut seen = HashSet::new();
+            let mut seen = HashSet::from([TALK_SHORTCUT.to_string()]);
             for k in view {
                 for v in cat[*k].as_array().into_iter().flatten() {
                     if let Some(s) = v["shortcut"].as_str() {

@@ -402,6 +402,7 @@ async fn publish_task(
         (if m.yes { "yes" } else { "no" }).to_string()
     })
     .await?;
+    let talk = bus.publisher(&topics::SPEECH_TALK).await?;
     let counters = bus.counters().clone();
     let mut tick = bus.clock().interval(Duration::from_millis(250));
     loop {
@@ -422,6 +423,10 @@ async fn publish_task(
                 }
                 if let Some(m) = out.answer {
                     answer.offer(m, &hub, &counters).await?;
+                }
+                // The key is only worth anything now: published at once, never held.
+                if let Some(mut m) = out.talk {
+                    talk.publish(&mut m).await?;
                 }
             }
             _ = coach.readers.changed() => {}
@@ -462,7 +467,8 @@ impl interfaces::node::Component for CommandGenerator {
     const ABOUT: &'static str = "The command panel: a web page with the games' buttons, the Nao coach's field and \
         the robot's answers. Open the printed address in a browser. Commands go on \
         `coach/request` (the Executive's coach machine checks them and commands the \
-        robot), `game/command` and `game/answer`, checked first; refusals are shown on \
+        robot), `game/command` and `game/answer`, checked first; the Talk button (or V held) \
+        goes on `speech/talk`, for a recognizer in push-to-talk mode; refusals are shown on \
         the page and counted on `diagnostics` (`rejected/<reason>`).  By default only \
         this machine can open it (127.0.0.1). To serve another machine, bind its address \
         with --http, add --allow-remote, and give a --token (or ROBOCOG_PANEL_TOKEN), \
@@ -477,6 +483,7 @@ impl interfaces::node::Component for CommandGenerator {
                 .publishes(&topics::COACH_REQUEST)
                 .publishes(&topics::GAME_COMMAND)
                 .publishes(&topics::GAME_ANSWER)
+                .publishes(&topics::SPEECH_TALK)
                 .subscribes(&topics::NAO_WORLD_MODEL)
                 .subscribes(&topics::NAO_LOCAL_MODEL)
                 .subscribes(&topics::NAO_GAME_STATE)

@@ -10,6 +10,9 @@
 //!   robot executes one of each at a time);
 //! - `pending`: a strategy choice, which travels with the next Nao command.
 //!
+//! The talk key (push-to-talk) is recorded as it goes down and comes up; the page's repeats of a
+//! held key are forwarded and not recorded.
+//!
 //! Times are passed in (`now_ms`: milliseconds since the Unix epoch), so the logic is tested
 //! without a clock.
 
@@ -17,6 +20,7 @@ use crate::protocol::{Request, RequestError, body_label, command_label, nao_of_c
 use interfaces::Header;
 use interfaces::msg::command::{Answer, CommandSource, Game, GameCommand};
 use interfaces::msg::nao::{FieldPoint, NaoBody, NaoCommand, NaoHead, NaoStrategy};
+use interfaces::msg::speech::TalkKey;
 use serde::Serialize;
 use std::collections::VecDeque;
 
@@ -60,6 +64,14 @@ pub struct Outgoing {
     pub nao: Option<NaoCommand>,
     pub game: Option<GameCommand>,
     pub answer: Option<Answer>,
+    pub talk: Option<TalkKey>,
+}
+
+impl Outgoing {
+    /// Whether there is anything to publish.
+    pub fn is_empty(&self) -> bool {
+        self.nao.is_none() && self.game.is_none() && self.answer.is_none() && self.talk.is_none()
+    }
 }
 
 /// The panel: strategy, history, and the request-to-message mapping.
@@ -68,6 +80,8 @@ pub struct Panel {
     strategy: NaoStrategy,
     history: VecDeque<Entry>,
     next_seq: u64,
+    /// Whether the talk key was last said to be held.
+    talk_held: bool,
 }
 
 impl Default for Panel {
@@ -82,6 +96,7 @@ impl Panel {
             strategy: NaoStrategy::Default,
             history: VecDeque::new(),
             next_seq: 1,
+            talk_held: false,
         }
     }
 
@@ -114,7 +129,8 @@ impl Panel {
         })
     }
 
-    /// Accept a checked request: the messages to publish, and its history entry.
+    /// Accept a checked request: the messages to publish, and its history entry (`seq` 0: not
+    /// recorded, a held talk key sent again).
     pub fn accept(&mut self, request: Request, now_ms: u64) -> (Outgoing, Entry) {
         let mut out = Outgoing::default();
         let label;
@@ -172,6 +188,24 @@ impl Panel {
                     header: Header::default(),
                     yes,
                 });
+            }
+            Request::Talk(held) => {
+                out.talk = Some(talk_key(held));
+                let entry = Entry {
+                    seq: 0,
+                    at_ms: now_ms,
+                    label: format!("talk key {}", if held { "down" } else { "up" }),
+                    status: Status::Accepted,
+                    reason: String::new(),
+                    target: None,
+                    body: false,
+                    head: false,
+                };
+                if held == self.talk_held {
+                    return (out, entry);
+                }
+                self.talk_held = held;
+                return (out, self.push(entry));
             }
         }
         let (body, head) = out
@@ -236,6 +270,15 @@ impl Panel {
         }
         self.history.push_back(e.clone());
         e
+    }
+}
+
+/// The talk key as the panel says it is.
+pub fn talk_key(held: bool) -> TalkKey {
+    TalkKey {
+        header: Header::default(),
+        held,
+        source: "panel".into(),
     }
 }
 
@@ -354,5 +397,27 @@ mod tests {
         }
         assert_eq!(p.history().count(), HISTORY_LEN);
         assert_eq!(p.history().last().unwrap().seq, 101);
+    }
+
+    #[test]
+    fn the_talk_key_is_forwarded_every_time_and_recorded_as_it_goes_down_and_up() {
+        let mut p = Panel::new();
+        let held = |p: &mut Panel, h: bool, at: u64| {
+            let text = format!(r#"{{"type":"talk","held":{h}}}"#);
+            p.accept(req(&text), at)
+        };
+        let (out, e) = held(&mut p, true, 1);
+        assert!(out.talk.as_ref().unwrap().held);
+        assert_eq!((e.seq, e.label.as_str()), (1, "talk key down"));
+        for at in 2..10 {
+            let (out, e) = held(&mut p, true, at);
+            assert!(out.talk.unwrap().held);
+            assert_eq!(e.seq, 0, "a repeat is not recorded");
+        }
+        let (out, e) = held(&mut p, false, 10);
+        assert!(!out.talk.unwrap().held);
+        assert_eq!((e.seq, e.label.as_str()), (2, "talk key up"));
+        let labels: Vec<&str> = p.history().map(|e| e.label.as_str()).collect();
+        assert_eq!(labels, ["talk key down", "talk key up"]);
     }
 }

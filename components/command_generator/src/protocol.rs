@@ -8,6 +8,7 @@
 //! | `nao` | `id`, `body` (a [`NaoBody`] name), `head` (a [`NaoHead`] name), `target` | a raw body/head command for the Nao (the buttons without a spoken phrase: Dribble, LookForward, Scan) |
 //! | `strategy` | `id`, `strategy` (a [`NaoStrategy`] name) | the strategy sent with every following Nao command |
 //! | `answer` | `id`, `yes` (bool) | a yes/no answer to the robot's "Did you say ...?" |
+//! | `talk` | `id`, `held` (bool) | the talk key for a recognizer in push-to-talk mode: sent when it goes down, every 0.5 s while held, and when it comes up (`speech/talk`) |
 //!
 //! `id` is the page's own number for the request, echoed in the reply. Unknown fields, unknown
 //! names, a command of the other game, a missing or unneeded target, a target off the carpet, a
@@ -83,6 +84,8 @@ pub enum Request {
     Strategy(NaoStrategy),
     /// Yes (`true`) or no to the dialog's question.
     Answer(bool),
+    /// The talk key is held (`true`) or came up.
+    Talk(bool),
 }
 
 /// Why a request was refused. The message is shown on the page as it is.
@@ -94,7 +97,7 @@ pub enum RequestError {
     Binary,
     #[error("malformed message: {0}")]
     Malformed(String),
-    #[error("unknown request type {0:?} (expected command, nao, strategy or answer)")]
+    #[error("unknown request type {0:?} (expected command, nao, strategy, answer or talk)")]
     UnknownType(String),
     #[error("missing field {0:?}")]
     MissingField(&'static str),
@@ -163,6 +166,7 @@ struct Raw {
     strategy: Option<String>,
     target: Option<RawTarget>,
     yes: Option<bool>,
+    held: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -298,6 +302,13 @@ pub fn parse_request(text: &str) -> Result<(u64, Request), RequestError> {
                 return Err(RequestError::UnexpectedTarget("an answer"));
             }
             Request::Answer(yes)
+        }
+        "talk" => {
+            let held = raw.held.ok_or(RequestError::MissingField("held"))?;
+            if target.is_some() {
+                return Err(RequestError::UnexpectedTarget("the talk key"));
+            }
+            Request::Talk(held)
         }
         other => return Err(RequestError::UnknownType(other.to_string())),
     };
@@ -613,6 +624,24 @@ mod tests {
         assert_eq!(
             err(r#"{"type":"nao","body":"GoToPosition"}"#),
             RequestError::MissingTarget("GoToPosition")
+        );
+    }
+
+    #[test]
+    fn the_talk_key_goes_down_and_up_and_nothing_else() {
+        assert_eq!(
+            ok(r#"{"type":"talk","id":4,"held":true}"#),
+            Request::Talk(true)
+        );
+        assert_eq!(ok(r#"{"type":"talk","held":false}"#), Request::Talk(false));
+        assert_eq!(
+            err(r#"{"type":"talk"}"#),
+            RequestError::MissingField("held")
+        );
+        assert_eq!(err(r#"{"type":"talk","held":"yes"}"#).name(), "malformed");
+        assert_eq!(
+            err(r#"{"type":"talk","held":true,"target":{"x_mm":0,"y_mm":0}}"#),
+            RequestError::UnexpectedTarget("the talk key")
         );
     }
 }

@@ -153,10 +153,31 @@ impl Hub {
     /// Handle one text request from a page: check it, forward it if accepted, record it in the
     /// history. Returns the reply for that page (the history goes to every page as an event).
     pub fn handle_text(&self, text: &str) -> String {
+        self.handle_page_text(text).0
+    }
+
+    /// [`Self::handle_text`], and the talk key's state when the request was the talk key (so
+    /// the page's connection knows to let it up if the page goes).
+    fn handle_page_text(&self, text: &str) -> (String, Option<bool>) {
         match parse_request(text) {
-            Ok((id, request)) => self.handle_request(id, request),
-            Err(e) => self.refuse(protocol::request_id(text), &protocol::describe(text), &e),
+            Ok((id, request)) => {
+                let talk = match request {
+                    Request::Talk(held) => Some(held),
+                    _ => None,
+                };
+                (self.handle_request(id, request), talk)
+            }
+            Err(e) => (
+                self.refuse(protocol::request_id(text), &protocol::describe(text), &e),
+                None,
+            ),
         }
+    }
+
+    /// A page that held the talk key went away: the key comes up.
+    fn release_talk(&self) {
+        tracing::info!("a page went while holding the talk key: letting it up");
+        self.handle_request(0, Request::Talk(false));
     }
 
     /// Refuse a request that could not be read as text (binary, over the limit).
@@ -167,8 +188,17 @@ impl Hub {
     fn handle_request(&self, id: u64, request: Request) -> String {
         let mut panel = lock(&self.panel);
         let (out, mut entry) = panel.accept(request, now_ms());
-        let has_messages = out.nao.is_some() || out.game.is_some() || out.answer.is_some();
+        let has_messages = !out.is_empty();
         let mut ok = true;
+        if entry.seq == 0 {
+            // A held talk key sent again: forwarded, not recorded.
+            drop(panel);
+            if self.out.try_send(out).is_err() {
+                self.counters.incr("rejected/bus_busy");
+                ok = false;
+            }
+            return reply_json(id, ok, &entry);
+        }
         if has_messages && let Err(e) = self.out.try_send(out) {
             ok = false;
             self.counters.incr("rejected/bus_busy");
@@ -335,8 +365,12 @@ async fn websocket(
         .max_frame_size(HARD_MESSAGE_LIMIT)
         .on_upgrade(move |socket| async move {
             hub.counters.incr("pages/connected");
-            if let Err(e) = connection(socket, &hub).await {
+            let mut talking = false;
+            if let Err(e) = connection(socket, &hub, &mut talking).await {
                 tracing::info!("a page disconnected: {e}");
+            }
+            if talking {
+                hub.release_talk();
             }
         })
 }
@@ -354,12 +388,13 @@ async fn send(socket: &mut WebSocket, msg: WsMessage) -> Result<(), String> {
 }
 
 /// One page: replies and the history at once, events as they come, states at their rates.
+/// `talking`: whether this page holds the talk key.
 #[expect(
     clippy::disallowed_methods,
     reason = "paces the sends to one page's WebSocket (transport), as its browser receives them on \
               the wall"
 )]
-async fn connection(mut socket: WebSocket, hub: &Hub) -> Result<(), String> {
+async fn connection(mut socket: WebSocket, hub: &Hub, talking: &mut bool) -> Result<(), String> {
     send(&mut socket, WsMessage::Text(hub.hello().into())).await?;
     send(&mut socket, WsMessage::Text(hub.history().into())).await?;
     let (recent, mut events) = hub.subscribe_events();
@@ -381,7 +416,13 @@ async fn connection(mut socket: WebSocket, hub: &Hub) -> Result<(), String> {
                         hub.counters.incr("rejected/connection_error");
                         return Err(format!("{e}"));
                     }
-                    Some(Ok(WsMessage::Text(t))) => hub.handle_text(t.as_str()),
+                    Some(Ok(WsMessage::Text(t))) => {
+                        let (reply, talk) = hub.handle_page_text(t.as_str());
+                        if let Some(held) = talk {
+                            *talking = held;
+                        }
+                        reply
+                    }
                     Some(Ok(WsMessage::Binary(b))) => {
                         let e = if b.len() > MAX_MESSAGE_BYTES {
                             RequestError::TooLarge { bytes: b.len() }

@@ -7,6 +7,7 @@ const MARGIN_MM = 300; // drawn beyond the carpet, so a click there is a target 
 const state = {
   ws: null,
   catalog: null,
+  talkTimer: null, // set while the talk key is held
   view: location.hash === '#touch' ? 'touch' : 'coach',
   nextId: 1,
   pick: null, // {kind: 'command'|'nao', name} while waiting for a field click
@@ -83,6 +84,10 @@ function handle(m) {
 }
 function onReply(m) {
   const e = m.entry;
+  if (e && e.label.startsWith('talk key')) {
+    if (!m.ok) notice(`the talk key was not sent: ${e.reason || 'the panel is busy'}`, false);
+    return;
+  }
   if (m.ok) {
     notice(`${e.status === 'pending' ? 'next command will carry' : 'sent'}: ${e.label}`, true);
     if (e.target) { state.target = e.target; drawField(); }
@@ -176,6 +181,11 @@ function buildButtons() {
   }
   const tb = $('shortcuts').tBodies[0];
   tb.textContent = '';
+  if (c.talk && c.talk.shortcut) TALK_KEY = c.talk.shortcut;
+  const talkRow = tb.insertRow();
+  talkRow.insertCell().innerHTML = `<kbd>${keyLabel(TALK_KEY)}</kbd> held`;
+  talkRow.insertCell().textContent = 'talk (push-to-talk)';
+  talkRow.insertCell().textContent = 'both';
   for (const view of ['coach', 'touch']) {
     for (const [k, v] of Object.entries(keymap[view])) {
       const tr = tb.insertRow();
@@ -202,8 +212,34 @@ function cancelPick() {
   $('pick-hint').hidden = true;
   $('field').classList.remove('picking');
 }
+// ---------- push-to-talk ----------
+// Held: {type: 'talk', held: true} at once and every TALK_REPEAT_MS, so a recognizer in
+// push-to-talk mode hears the operator; released (button up, key up, the page hidden or left):
+// held false. A page that stops sending (hung, closed) is taken as released by the recognizer.
+const TALK_REPEAT_MS = 500;
+let TALK_KEY = 'v'; // the catalog's talk shortcut
+function talk(held) {
+  if (held === !!state.talkTimer) return;
+  if (held) {
+    send({ type: 'talk', held: true });
+    state.talkTimer = setInterval(() => send({ type: 'talk', held: true }), TALK_REPEAT_MS);
+  } else {
+    clearInterval(state.talkTimer);
+    state.talkTimer = null;
+    send({ type: 'talk', held: false });
+  }
+  $('talk').classList.toggle('held', held);
+  $('talk').setAttribute('aria-pressed', String(held));
+}
+$('talk').addEventListener('pointerdown', (ev) => { ev.preventDefault(); $('talk').setPointerCapture(ev.pointerId); talk(true); });
+for (const e of ['pointerup', 'pointercancel', 'lostpointercapture']) $('talk').addEventListener(e, () => talk(false));
+window.addEventListener('blur', () => talk(false));
+document.addEventListener('visibilitychange', () => { if (document.hidden) talk(false); });
+document.addEventListener('keyup', (ev) => { if (ev.key.toLowerCase() === TALK_KEY) talk(false); });
+
 document.addEventListener('keydown', (ev) => {
   if (ev.target instanceof HTMLInputElement || ev.ctrlKey || ev.metaKey || ev.altKey) return;
+  if (ev.key.toLowerCase() === TALK_KEY) { ev.preventDefault(); if (!ev.repeat) talk(true); return; }
   if (ev.key === 'Escape') { cancelPick(); return; }
   if (ev.key === '1') { setView('coach'); return; }
   if (ev.key === '2') { setView('touch'); return; }

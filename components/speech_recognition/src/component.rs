@@ -7,12 +7,13 @@ use crate::beam::LiveBeam;
 use crate::confidence::ConfidenceConfig;
 use crate::heard;
 use crate::model::{AcousticModel, AdaptedOn, adapted_model_dir, adapted_on};
+use crate::talk::{KeyNews, TalkGate};
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
 use interfaces::clock::Moment;
 use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
-use interfaces::msg::speech::{AudioChunk, Utterance, VoiceActivity, VoiceState};
+use interfaces::msg::speech::{AudioChunk, TalkKey, Utterance, VoiceActivity, VoiceState};
 use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
@@ -24,9 +25,20 @@ use std::time::Duration;
 pub const DECODER_BACKLOG_S: f64 = 10.0;
 
 /// A block for the decoder: its samples, when it arrived (the component's clock), when its
-/// first sample was heard (ns, the microphone's time), and whether it came from elsewhere than
-/// the person ([`crate::beam`]).
-type Queued = (Vec<i16>, Moment, i64, bool);
+/// first sample was heard (ns, the microphone's time), and whose sound it is.
+type Queued = (Vec<i16>, Moment, i64, Whose);
+
+/// Whose sound a block is, as far as the component knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Whose {
+    /// Nothing says: the end-pointer judges.
+    Unknown,
+    /// Someone else's: from another direction ([`crate::beam`]), or heard while the talk key
+    /// was up ([`crate::talk`]).
+    Elsewhere,
+    /// The person's: heard while she held the talk key.
+    Hers,
+}
 
 /// The most chunks that may wait for the decoder, however short: 10 s of 2.5 ms chunks.
 const DECODER_BACKLOG_CHUNKS: usize = 4000;
@@ -125,10 +137,10 @@ pub struct Config {
     #[arg(long)]
     pub denoise: bool,
     /// Acoustic model: `stock` (Debian's en-us), `adapted` (the one `speech_model` built), or a
-    /// PocketSphinx model folder. Default: `$ROBOCOG_ACOUSTIC_MODEL`, else the adapted model
-    /// when `speech_model` built it on recordings of people, else the stock model (a model
-    /// adapted on the synthesized voices hears people worse than the stock one).
-    #[arg(long, value_name = "stock|adapted|DIR")]
+    /// PocketSphinx model folder. Default (or `auto`): `$ROBOCOG_ACOUSTIC_MODEL`, else the
+    /// adapted model when `speech_model` built it on recordings of people, else the stock model
+    /// (a model adapted on the synthesized voices hears people worse than the stock one).
+    #[arg(long, value_name = "auto|stock|adapted|DIR")]
     pub acoustic_model: Option<String>,
     /// Filler words of the garbage model that catches out-of-grammar speech, one per line
     /// (default: the shipped `grammars/filler.words`).
@@ -148,6 +160,12 @@ pub struct Config {
     /// was down (see `heard`). None: it starts from the live stream.
     #[arg(long, env = "ROBOCOG_STATE_DIR")]
     pub state_dir: Option<PathBuf>,
+    /// Push-to-talk: only what is heard while the operator holds the talk key (`speech/talk`:
+    /// the command panel's "Hold to talk" button, or V held on its page) is speech; the rest is
+    /// the room's and never opens an utterance. For halls where everyone talks (a RoboCup
+    /// field), with a headset microphone.
+    #[arg(long, default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub push_to_talk: bool,
 }
 
 /// The `speech_recognition` component.
@@ -166,6 +184,8 @@ pub struct Prepared {
     pub hold: Duration,
     /// Where how far the stream was heard is kept.
     pub state_dir: Option<PathBuf>,
+    /// Only what is heard while the talk key is held is speech (`--push-to-talk`).
+    pub push_to_talk: bool,
 }
 
 impl Component for SpeechRecognition {
@@ -174,11 +194,16 @@ impl Component for SpeechRecognition {
     type Config = Config;
     type Prepared = Prepared;
 
-    fn interface(_: &Config) -> Interface {
-        Interface::new(Self::NAME)
+    fn interface(config: &Config) -> Interface {
+        let i = Interface::new(Self::NAME)
             .subscribes(&topics::AUDIO_IN)
             .publishes(&topics::SPEECH_UTTERANCE)
-            .publishes(&topics::SPEECH_ACTIVITY)
+            .publishes(&topics::SPEECH_ACTIVITY);
+        if config.push_to_talk {
+            i.subscribes(&topics::SPEECH_TALK)
+        } else {
+            i
+        }
     }
 
     /// Load the grammar and the acoustic model (seconds) before joining the bus.
@@ -222,6 +247,7 @@ impl Component for SpeechRecognition {
                 .collect(),
             hold: Duration::from_secs_f64(config.hold_s),
             state_dir: config.state_dir,
+            push_to_talk: config.push_to_talk,
         })
     }
 
@@ -309,11 +335,13 @@ const CATCH_UP_WAIT: Duration = Duration::from_secs(2);
 const CHUNK_GAP_NS: i64 = 500_000_000;
 
 /// One chunk of `audio/in` to the decoder: one of the wrong format, or one the decoder has no
-/// room for, is dropped and counted.
+/// room for, is dropped and counted. With push-to-talk (`talk`), what was heard while the key
+/// was up goes as sound from elsewhere.
 fn feed(
     bus: &Bus,
     audio_tx: &DecoderQueue,
     beam: &mut Option<LiveBeam>,
+    talk: &mut Option<TalkGate>,
     chunk: AudioChunk,
 ) -> anyhow::Result<()> {
     let channels = usize::from(chunk.channels);
@@ -390,9 +418,57 @@ fn feed(
         _ => vec![(samples, chunk.header.stamp_ns, false)],
     };
     for (samples, stamp_ns, elsewhere) in blocks {
-        queue(bus, audio_tx, samples, stamp_ns, elsewhere)?;
+        let key = talk.as_mut().map(|gate| {
+            let expired = gate.expired;
+            let half_ns = samples.len() as i64 * 500_000_000 / i64::from(RATE_HZ);
+            let held = gate.held_at(stamp_ns + half_ns);
+            if gate.expired > expired {
+                bus.counters().incr("talk_key_expired");
+                tracing::warn!(
+                    "the talk key was held and then not heard of for {:.1} s (the panel or its \
+                     page is gone?): taken as released",
+                    interfaces::msg::speech::TALK_KEY_EXPIRY_S
+                );
+            }
+            held
+        });
+        let whose = match (elsewhere, key) {
+            (true, _) => Whose::Elsewhere,
+            (false, None) => Whose::Unknown,
+            (false, Some(true)) => Whose::Hers,
+            (false, Some(false)) => {
+                bus.counters().incr("talk_blocks_outside_key");
+                Whose::Elsewhere
+            }
+        };
+        queue(bus, audio_tx, samples, stamp_ns, whose)?;
     }
     Ok(())
+}
+
+/// A talk key message into the push-to-talk gate, logged as the key goes down and up.
+fn hear_key(bus: &Bus, gate: &mut TalkGate, key: &TalkKey) {
+    match gate.key(key) {
+        KeyNews::Pressed => tracing::info!("talk key down ({})", key.source),
+        KeyNews::Released => tracing::info!("talk key up ({})", key.source),
+        KeyNews::Same => {}
+        KeyNews::Dropped => {
+            let n = bus
+                .counters()
+                .counter("talk_key_dropped")
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if n.is_power_of_two() || n == 0 {
+                tracing::warn!(
+                    "dropped a talk key message from {:?} stamped {} ns: older than the last one, \
+                     or over a minute off the microphone's time (is that machine's clock \
+                     right?); {} so far",
+                    key.source,
+                    key.header.stamp_ns,
+                    n + 1
+                );
+            }
+        }
+    }
 }
 
 /// One block of one channel to the decoder, or dropped and counted when it is too far behind.
@@ -401,7 +477,7 @@ fn queue(
     audio_tx: &DecoderQueue,
     samples: Vec<i16>,
     stamp_ns: i64,
-    elsewhere: bool,
+    whose: Whose,
 ) -> anyhow::Result<()> {
     let limit = (DECODER_BACKLOG_S * f64::from(RATE_HZ)) as usize;
     let queued = audio_tx.queued.load(std::sync::atomic::Ordering::Relaxed);
@@ -413,7 +489,7 @@ fn queue(
             .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
         match audio_tx
             .tx
-            .try_send((samples, bus.clock().now(), stamp_ns, elsewhere))
+            .try_send((samples, bus.clock().now(), stamp_ns, whose))
         {
             Ok(()) => false,
             Err(std::sync::mpsc::TrySendError::Full(_)) => {
@@ -439,6 +515,16 @@ fn queue(
         }
     }
     Ok(())
+}
+
+/// The next talk key message; never, without push-to-talk.
+async fn next_key(
+    keys: Option<&interfaces::Subscriber<TalkKey>>,
+) -> Result<TalkKey, interfaces::BusError> {
+    match keys {
+        Some(keys) => keys.recv().await,
+        None => std::future::pending().await,
+    }
 }
 
 /// Says which acoustic model decodes, and what else is there and why it is not used.
@@ -540,10 +626,11 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
             let mut heard_s = 0.0;
             // The start of the utterance whose speech was announced.
             let mut announced: Option<f64> = None;
-            while let Some((samples, arrived, stamp_ns, elsewhere)) = audio_rx.recv() {
+            while let Some((samples, arrived, stamp_ns, whose)) = audio_rx.recv() {
                 let dropped_before = recognizer.dropped_short();
                 heard_s += samples.len() as f64 / f64::from(RATE_HZ);
-                match recognizer.push_from(&samples, elsewhere) {
+                recognizer.set_hers(whose == Whose::Hers);
+                match recognizer.push_from(&samples, whose == Whose::Elsewhere) {
                     Ok(v) => {
                         let dropped = recognizer.dropped_short() > dropped_before;
                         let mut events = Vec::new();
@@ -593,6 +680,19 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         None => None,
     };
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
+    let (mut talk, talk_keys) = if prepared.push_to_talk {
+        tracing::info!(
+            "push-to-talk: only what is heard while the talk key is held ({}: the panel's \
+             \"Hold to talk\" button, or V held on its page) is speech",
+            topics::SPEECH_TALK.name()
+        );
+        (
+            Some(TalkGate::new()),
+            Some(bus.subscriber(&topics::SPEECH_TALK).await?),
+        )
+    } else {
+        (None, None)
+    };
     // A restart: what was said while this recognizer was down, from the microphone's kept audio.
     let mut keeper = prepared.state_dir.as_deref().map(heard::Keeper::new);
     let mut fed_until_ns = i64::MIN;
@@ -631,7 +731,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
         for chunk in missed {
             fed_until_ns = fed_until_ns.max(chunk.header.stamp_ns);
-            feed(&bus, &audio_tx, &mut beam, chunk)?;
+            feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)?;
         }
     }
     // What is heard while the dialog restarts waits for it (see `interfaces::outbox`).
@@ -674,7 +774,12 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 if chunk.header.stamp_ns <= fed_until_ns {
                     continue;
                 }
-                feed(&bus, &audio_tx, &mut beam, chunk)?;
+                feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)?;
+            }
+            key = next_key(talk_keys.as_ref()) => {
+                if let Some(gate) = talk.as_mut() {
+                    hear_key(&bus, gate, &key?);
+                }
             }
             r = res_rx.recv() => {
                 let Some(r) = r else { anyhow::bail!("the decoder thread stopped") };

@@ -322,6 +322,12 @@ impl Recognizer {
         self.push(samples)
     }
 
+    /// Whether what is pushed from now on is known to be the person's, a talk key held
+    /// ([`crate::vad::Vad::set_hers`]).
+    pub fn set_hers(&mut self, hers: bool) {
+        self.vad.set_hers(hers);
+    }
+
     /// [`Recognizer::push`] after the offset is removed.
     fn push_centred(&mut self, samples: &[i16]) -> Result<Vec<Recognized>, RecognizerError> {
         let segs = self.vad.push(samples);

@@ -37,7 +37,10 @@
 //! **Sound from elsewhere.** A caller that knows where sounds come from (a microphone array's
 //! localizer, [`crate::beam`]) marks what comes from elsewhere than the person's direction
 //! ([`Vad::set_elsewhere`]): those frames are never loud (they neither open nor stretch an
-//! utterance, and are the background's), however loud they are.
+//! utterance, and are the background's), however loud they are. A caller that knows the person
+//! is speaking (push-to-talk, [`crate::talk`]) says so ([`Vad::set_hers`]): then the background's
+//! threshold does not keep her from opening an utterance, only the floor does; what she says
+//! under a hall's talk as loud as she is still opens one.
 //!
 //! Times are sample indices on the stream (from 0), so the caller turns them into seconds.
 
@@ -163,6 +166,8 @@ pub struct Vad {
     pub dropped_short: u64,
     /// Whether what is heard now comes from elsewhere than the person (see the module doc).
     elsewhere: bool,
+    /// Whether what is heard now is known to be the person's (see the module doc).
+    hers: bool,
 }
 
 /// The level of a frame of digital silence (exact zeros), in dBFS.
@@ -224,6 +229,7 @@ impl Vad {
             background_sorted: Vec::new(),
             dropped_short: 0,
             elsewhere: false,
+            hers: false,
         }
     }
 
@@ -231,6 +237,13 @@ impl Vad {
     /// else's, see the module doc), until said otherwise.
     pub fn set_elsewhere(&mut self, elsewhere: bool) {
         self.elsewhere = elsewhere;
+    }
+
+    /// Whether the frames pushed from now on are known to be the person's (a talk key is held):
+    /// an utterance opens on the floor alone, the background's threshold aside, until said
+    /// otherwise.
+    pub fn set_hers(&mut self, hers: bool) {
+        self.hers = hers;
     }
 
     /// Add a frame's smoothed level to the background (digital silence too: a room that fell
@@ -450,7 +463,7 @@ impl Vad {
         let (threshold, talk) = match &self.open {
             Some(open) => (open.threshold, open.over_talk),
             None => (
-                self.background_threshold(),
+                self.background_threshold().filter(|_| !self.hers),
                 self.background_is_talk().unwrap_or(false),
             ),
         };

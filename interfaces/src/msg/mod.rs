@@ -198,6 +198,7 @@ messages! {
     speech::SayRequest => "robocog.speech.SayRequest",
     speech::SpeakingEvent => "robocog.speech.SpeakingEvent",
     speech::VoiceActivity => "robocog.speech.VoiceActivity",
+    speech::TalkKey => "robocog.speech.TalkKey",
     tracking::SimBall => "robocog.sim.Ball",
     body::JointGoal => "robocog.body.JointGoal",
     body::JointGoalReply => "robocog.body.JointGoalReply",

@@ -100,6 +100,26 @@ pub struct VoiceActivity {
     pub stream_s: f64,
 }
 
+/// The operator's talk key (`speech/talk`), for a recognizer in push-to-talk mode
+/// (`speech_recognition --push-to-talk`): only what the microphone hears while the key is held
+/// is speech to it; the rest is the room's. Sent when the key goes down, every
+/// [`TALK_KEY_REPEAT_S`] while it is held, and when it comes up. The header's stamp is when the
+/// key was in that state (the microphone's clock: the bus's wall time).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TalkKey {
+    pub header: Header,
+    /// Whether the key is held.
+    pub held: bool,
+    /// Who holds it (`panel`, a keyboard tool's name), for the logs.
+    pub source: String,
+}
+
+/// How often a held talk key is sent again (s).
+pub const TALK_KEY_REPEAT_S: f64 = 0.5;
+/// A held talk key not sent again for this long is taken as released (s): the panel that held
+/// it is gone, or its page.
+pub const TALK_KEY_EXPIRY_S: f64 = 1.5;
+
 /// The end-pointer's decision.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum VoiceState {

@@ -794,6 +794,12 @@ class StateTransition:
     step: int = 0
 
 @dataclasses.dataclass
+class TalkKey:
+    header: Header = dataclasses.field(default_factory=Header)
+    held: bool = False
+    source: str = ""
+
+@dataclasses.dataclass
 class Text:
     header: Header = dataclasses.field(default_factory=Header)
     text: str = ""
@@ -903,6 +909,7 @@ TYPES: dict[str, type] = {
     "robocog.sim.FieldTruth": FieldTruth,
     "robocog.speech.SayRequest": SayRequest,
     "robocog.speech.SpeakingEvent": SpeakingEvent,
+    "robocog.speech.TalkKey": TalkKey,
     "robocog.speech.Utterance": Utterance,
     "robocog.speech.VoiceActivity": VoiceActivity,
 }
@@ -999,6 +1006,7 @@ CLASSES: dict[str, type] = {
     "SnapshotRequest": SnapshotRequest,
     "SpeakingEvent": SpeakingEvent,
     "StateTransition": StateTransition,
+    "TalkKey": TalkKey,
     "Text": Text,
     "TransformReply": TransformReply,
     "TransformRequest": TransformRequest,

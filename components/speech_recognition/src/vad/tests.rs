@@ -328,3 +328,69 @@ fn background_talk_is_not_taken_for_speech_and_a_command_over_it_is() {
         "without the background threshold the command was cut alone: {times:?}"
     );
 }
+
+/// Push-to-talk: talk as loud as hers, heard while the key was up (from elsewhere), is the
+/// background. With the key held she opens one utterance over her whole command; judged by
+/// the background's threshold alone, her command does not stand out of talk as loud as it.
+#[test]
+fn with_the_key_held_her_command_opens_over_talk_as_loud_as_hers() {
+    use audio::signal::active_power;
+    use audio::synth::{Voice, synthesize_16k};
+    let other = synthesize_16k(
+        "we drove along the coast and stopped for lunch in a small village",
+        &Voice {
+            voice: "en-gb+f5".into(),
+            speed_wpm: 170,
+            pitch: 45,
+        },
+    )
+    .expect("espeak-ng");
+    let command = synthesize_16k("pass the ball", &Voice::default()).expect("espeak-ng");
+    let level = |x: &[i16]| {
+        let g = (1e-2 / active_power(x)).sqrt();
+        x.iter()
+            .map(move |s| f64::from(*s) * g)
+            .collect::<Vec<f64>>()
+    };
+    let quiet = |s: f64| vec![0.0; (s * 16_000.0) as usize];
+    let mut stream: Vec<f64> = quiet(0.5);
+    stream.extend(level(&other));
+    let key_down = stream.len();
+    stream.extend(quiet(0.2));
+    let command_start = stream.len();
+    stream.extend(level(&command));
+    let command_end = command_start
+        + command
+            .iter()
+            .rposition(|x| x.unsigned_abs() > 300)
+            .unwrap_or(0);
+    stream.extend(quiet(1.0));
+    let stream: Vec<i16> = stream
+        .iter()
+        .map(|s| s.round().clamp(-32768.0, 32767.0) as i16)
+        .collect();
+    let stream = with_noise(stream, 1e-6, 4);
+    let cut = |keyed: bool| {
+        let mut vad = Vad::new(VadConfig::default());
+        let mut segs = vec![];
+        for (k, c) in stream.chunks(320).enumerate() {
+            let held = k * 320 >= key_down;
+            vad.set_elsewhere(!held);
+            vad.set_hers(keyed && held);
+            segs.extend(vad.push(c));
+        }
+        segs.extend(vad.flush());
+        segs
+    };
+    let whole = |s: &Segment| {
+        s.start_sample <= command_start as u64 + 1600 && s.end_sample >= command_end as u64 - 1600
+    };
+    let keyed = cut(true);
+    assert_eq!(keyed.len(), 1, "{keyed:?}");
+    assert!(
+        whole(&keyed[0]),
+        "{keyed:?} (her command: {command_start}..{command_end})"
+    );
+    let unkeyed = cut(false);
+    assert!(!unkeyed.iter().any(whole), "{unkeyed:?}");
+}
