@@ -964,6 +964,14 @@ fn what_is_heard_is_logged_after_the_timers_that_fell_due_before_it() {
     assert_eq!(kinds.iter().filter(|k| **k == "state").count(), 3);
 }
 
+/// The reach goals of `o` that are not the neck's.
+fn arm_reaches(o: &Outcome) -> Vec<&ReachGoal> {
+    reaches(o)
+        .into_iter()
+        .filter(|r| r.body_part != "neck")
+        .collect()
+}
+
 /// The game `g` left, taken up by a fresh game at `now` (a restarted Executive): the record
 /// through its JSON, as on disk.
 fn restarted(g: &TouchGame, now: f64) -> (TouchGame, Outcome) {
@@ -1083,10 +1091,7 @@ fn a_restarted_executive_reaches_again_once_it_sees_the_ball_when_the_arm_was_at
         );
         fresh.ball_track(&track([0.6, 0.1, 0.78]), t(6.4));
         let o = fresh.ball_event(&ball(BallEventKind::Detected), t(6.5));
-        let arm: Vec<_> = reaches(&o)
-            .into_iter()
-            .filter(|r| r.body_part != "neck")
-            .collect();
+        let arm = arm_reaches(&o);
         assert_eq!(
             arm.len(),
             1,
@@ -1121,10 +1126,7 @@ fn a_restarted_executive_reaches_again_with_the_base_when_the_reach_had_turned_i
     let (mut fresh, _) = restarted(&g, 6.0);
     fresh.ball_track(&track([0.6, 0.1, 0.78]), t(6.4));
     let o = fresh.ball_event(&ball(BallEventKind::Detected), t(6.5));
-    let arm: Vec<_> = reaches(&o)
-        .into_iter()
-        .filter(|r| r.body_part != "neck")
-        .collect();
+    let arm = arm_reaches(&o);
     assert_eq!(arm.len(), 1, "{o:?}");
     assert_eq!(arm[0].body_part, "left_arm_9", "the base goes on turning");
     // And it goes home with the arm.
