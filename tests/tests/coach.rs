@@ -135,6 +135,30 @@ fn launch_coach(ns: &str, sets: &[String], components: &[&str]) -> Launch {
     launch
 }
 
+/// Answers yes on `game/answer`, as from the panel, to every "Did you say ...?" in `says`, in
+/// the background.
+fn answer_yes_to_questions(says: &Log<SayRequest>, answers: interfaces::Publisher<Answer>) {
+    let says = says.0.clone();
+    tokio::spawn(async move {
+        let mut seen = 0;
+        loop {
+            let asks: Vec<_> = says.lock().unwrap().iter().skip(seen).cloned().collect();
+            seen += asks.len();
+            for a in asks {
+                if a.text.to_lowercase().contains("did you say") {
+                    let _ = answers
+                        .publish(&mut Answer {
+                            yes: true,
+                            ..Default::default()
+                        })
+                        .await;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    });
+}
+
 fn said(log: &Log<SayRequest>) -> Vec<String> {
     log.all().into_iter().map(|s| s.text).collect()
 }
@@ -179,27 +203,7 @@ async fn a_scripted_attempt_with_voice_and_bus_commands() {
     let audio = bus.publisher(&topics::AUDIO_IN).await.unwrap();
     let answers = bus.publisher(&topics::GAME_ANSWER).await.unwrap();
     // The dialog may ask "Did you say ...?": the test answers yes from the panel.
-    {
-        let says = says.0.clone();
-        tokio::spawn(async move {
-            let mut seen = 0;
-            loop {
-                let asks: Vec<_> = says.lock().unwrap().iter().skip(seen).cloned().collect();
-                seen += asks.len();
-                for a in asks {
-                    if a.text.to_lowercase().contains("did you say") {
-                        let _ = answers
-                            .publish(&mut Answer {
-                                yes: true,
-                                ..Default::default()
-                            })
-                            .await;
-                    }
-                }
-                tokio::time::sleep(Duration::from_millis(50)).await;
-            }
-        });
-    }
+    answer_yes_to_questions(&says, answers);
     let field = eventually("field pid", Duration::from_secs(10), || {
         component_pid(&launch, "spl_field")
     });
@@ -1511,27 +1515,7 @@ async fn with_push_to_talk_only_what_is_said_while_the_key_is_held_is_heard() {
         ..TalkKey::default()
     };
     // A "Did you say ...?" is answered yes, as from the panel.
-    {
-        let says = says.0.clone();
-        tokio::spawn(async move {
-            let mut seen = 0;
-            loop {
-                let asks: Vec<_> = says.lock().unwrap().iter().skip(seen).cloned().collect();
-                seen += asks.len();
-                for a in asks {
-                    if a.text.to_lowercase().contains("did you say") {
-                        let _ = answers
-                            .publish(&mut Answer {
-                                yes: true,
-                                ..Default::default()
-                            })
-                            .await;
-                    }
-                }
-                tokio::time::sleep(Duration::from_millis(50)).await;
-            }
-        });
-    }
+    answer_yes_to_questions(&says, answers);
 
     // Someone near the microphone says a command; nobody holds the key.
     say_into_the_microphone(&audio, Command::Kick.phrase()).await;
