@@ -107,6 +107,9 @@ pub const AUDIO_OUT: Topic<crate::msg::speech::AudioChunk> = Topic::new("audio/o
 pub const SPEECH_UTTERANCE: Topic<crate::msg::speech::Utterance> = Topic::new("speech/utterance");
 /// The recognizer's end-pointer: someone started or stopped speaking (before decoding).
 pub const SPEECH_ACTIVITY: Topic<crate::msg::speech::VoiceActivity> = Topic::new("speech/activity");
+/// Where a recognizer hearing through a microphone array listens, and where it hears sound from.
+pub const SPEECH_LISTENING: Topic<crate::msg::speech::ListeningDirection> =
+    Topic::new("speech/listening");
 /// The operator's talk key, for a recognizer in push-to-talk mode (the command panel's button).
 pub const SPEECH_TALK: Topic<crate::msg::speech::TalkKey> = Topic::new("speech/talk");
 /// Requests to say something, with a priority (urgent interrupts).

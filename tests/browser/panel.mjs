@@ -7,7 +7,7 @@
 // shows it as the last command; the spoken answer appears; a click off the carpet is refused
 // with its reason; bad input over a raw WebSocket is refused and the server keeps serving; a
 // status that stops updating is greyed out; the talk key (V, the button, a page that goes while
-// holding it); screenshots of both views.
+// holding it); where the recognizer listens; screenshots of both views.
 import { launch, report, fail, arg, until, clickField } from './lib.mjs';
 
 const url = arg('url');
@@ -211,7 +211,13 @@ try {
     const t = await page.textContent('#ball-info');
     return t.startsWith('tracking') && t.includes('window') && t;
   });
-  report('touch', { camera, ball });
+  // Where the recognizer listens (the Rust side publishes speech/listening: a talker at 60
+  // degrees to the left, someone else's).
+  const hearing = await until('the hearing line', 5000, async () => {
+    const t = await page.textContent('#hearing');
+    return t.includes('listening at 0° (ahead)') && t.includes('a sound from 60°, someone else') && t;
+  });
+  report('touch', { camera, ball, hearing });
   await page.click('button[data-name="TouchBall"]');
   await until('TouchBall to be sent', 5000, async () => (await page.textContent('#notice')).startsWith('sent: TouchBall'));
   await page.keyboard.press('y');

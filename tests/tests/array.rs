@@ -14,7 +14,7 @@ use audio::array::sim::{RenderedRoom, TalkersRoom};
 use audio::array::{ArrayGeometry, Multichannel, SrpPhat};
 use audio::synth::Voice;
 use interfaces::msg::command::{Command, Game};
-use interfaces::msg::speech::Utterance;
+use interfaces::msg::speech::{ListeningDirection, Utterance};
 use interfaces::{Bus, topics};
 use robocog_tests::*;
 use std::time::Duration;
@@ -112,6 +112,7 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
     let (launch, bus) = graph("array", &text).await;
     let audio = Log::follow(&bus, &topics::AUDIO_IN).await;
     let heard = Log::follow(&bus, &topics::SPEECH_UTTERANCE).await;
+    let listening = Log::follow(&bus, &topics::SPEECH_LISTENING).await;
     let geometry = ArrayGeometry::builtin("circular_4").unwrap();
 
     // The canceller's microphone keeps the array's channels.
@@ -153,6 +154,21 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
         .azimuth_rad
         .to_degrees();
     assert!((at - 60.0).abs() < 10.0, "located at {at:.0} degrees");
+    // The recognizer says where it listens, and that she was someone else to it.
+    let aside: Vec<ListeningDirection> = listening.all();
+    assert!(
+        aside
+            .iter()
+            .all(|l| l.header.frame_id == "circular_4" && l.beam_azimuth_rad == 0.0),
+        "{aside:?}"
+    );
+    assert!(
+        aside.iter().any(|l| l.located
+            && l.elsewhere
+            && (l.talker_azimuth_rad.to_degrees() - 60.0).abs() < 15.0),
+        "no block of hers placed elsewhere, at 60 degrees: {aside:?}"
+    );
+    let before_player = listening.len();
 
     // The player, straight ahead, says the game's commands.
     let said: Vec<Command> = Command::of_game(Game::Touch).take(5).collect();
@@ -169,6 +185,14 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
     assert!(
         log.contains("listening at 0 degrees"),
         "the recognizer says where it listens:\n{log}"
+    );
+    // The player straight ahead is placed there, and heard as herself.
+    let player: Vec<ListeningDirection> = listening.all()[before_player..].to_vec();
+    assert!(
+        player
+            .iter()
+            .any(|l| l.located && !l.elsewhere && l.talker_azimuth_rad.to_degrees().abs() < 15.0),
+        "{player:?}"
     );
 }
 

@@ -237,7 +237,8 @@ binary = "{}"
 args = ["--http", "192.0.2.1:8642", "--allow-remote", "--token", "a-long-enough-token"]
 external_inputs = ["nao/world_model", "nao/game_state", "nao/link", "nao/local_model",
     "coach/status", "vision/rgbd", "vision/ball", "vision/ball_events", "speech/speaking",
-    "speech/utterance", "speech/say", "executive/transitions", "executive/log", "game/command"]
+    "speech/utterance", "speech/say", "executive/transitions", "executive/log", "game/command",
+    "speech/listening"]
 "#,
             bin("command_generator").display()
         ),

@@ -84,7 +84,8 @@ name = "command_generator"
 binary = "command_generator"
 args = ["--http", "${{panel_http}}", "--camera-hz", "5"]
 depends_on = ["nao_bridge"]
-external_inputs = ["speech/speaking", "speech/utterance", "vision/ball", "vision/ball_events"]
+external_inputs = ["speech/speaking", "speech/utterance", "vision/ball", "vision/ball_events",
+    "speech/listening"]
 
 # The coach machine: it answers and checks the panel's requests, then commands the robot.
 [[component]]
@@ -199,6 +200,28 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
             if tracks.publish(&mut t).await.is_err() {
                 return;
             }
+        }
+    });
+
+    // A recognizer hearing through an array, as it says where it listens: a talker at 60
+    // degrees to the left, someone else's (the touch view shows it).
+    let listening = bus.publisher(&topics::SPEECH_LISTENING).await.unwrap();
+    tokio::spawn(async move {
+        loop {
+            let mut m = interfaces::msg::speech::ListeningDirection {
+                header: interfaces::Header {
+                    frame_id: "circular_4".into(),
+                    ..Default::default()
+                },
+                beam_azimuth_rad: 0.0,
+                located: true,
+                talker_azimuth_rad: 60f64.to_radians(),
+                elsewhere: true,
+            };
+            if listening.publish(&mut m).await.is_err() {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
         }
     });
 

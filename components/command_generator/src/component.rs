@@ -46,6 +46,7 @@ pub const STATE_RATES: &[(&str, f64)] = &[
     ("vision/ball", 10.0),
     ("executive/transitions", 10.0),
     ("coach/status", 4.0),
+    ("speech/listening", 5.0),
 ];
 
 fn interval_of(topic: &str) -> Duration {
@@ -103,6 +104,10 @@ pub async fn run(bus: Bus, config: Config, mut shutdown: Shutdown) -> anyhow::Re
         &topics::EXECUTIVE_TRANSITIONS,
         |m| format!("/{}", m.machine),
     )
+    .await?;
+    state(&mut tasks, &bus, &hub, &topics::SPEECH_LISTENING, |_| {
+        String::new()
+    })
     .await?;
     // The coach machine's status, in the page's own shape (see `coach_status`).
     {
@@ -498,6 +503,7 @@ impl interfaces::node::Component for CommandGenerator {
                 .subscribes(&topics::EXECUTIVE_TRANSITIONS)
                 .subscribes(&topics::EXECUTIVE_LOG)
                 .subscribes(&topics::COACH_STATUS)
+                .subscribes(&topics::SPEECH_LISTENING)
         }
     }
 

@@ -21,6 +21,10 @@
 //!   state and the world model, and only then sends on `nao/command`; touch commands on
 //!   `game/command` (a [`interfaces::msg::command::GameCommand`], `source = Panel`, confidence
 //!   1); yes/no on `game/answer`. The panel never commands the robot directly.
+//! - **The talk key** ("Hold to talk", or V held): `speech/talk` for a recognizer in
+//!   push-to-talk mode, sent as it goes down, every 0.5 s while it is held (the page repeats it),
+//!   and as it comes up; a page that goes while holding it has it let up by the server. Only its
+//!   going down and up are in the history.
 //!
 //! Field frame (coach view): millimetres, origin at the centre spot, x towards the opponent
 //! goal, y to the left, angles counter-clockwise from +x: the frame of `interfaces::msg::nao`.
@@ -29,9 +33,10 @@
 //!
 //! One connection per page, JSON text both ways, plus binary camera images from the server.
 //!
-//! Page to server: the requests of [`protocol`] (`command`, `nao`, `strategy`, `answer`), at most
-//! [`protocol::MAX_MESSAGE_BYTES`] each. A message over [`server::HARD_MESSAGE_LIMIT`] closes that
-//! connection (the page reconnects); everything smaller gets a reply.
+//! Page to server: the requests of [`protocol`] (`command`, `nao`, `strategy`, `answer`,
+//! `talk`), at most [`protocol::MAX_MESSAGE_BYTES`] each. A message over
+//! [`server::HARD_MESSAGE_LIMIT`] closes that connection (the page reconnects); everything
+//! smaller gets a reply.
 //!
 //! Server to page, each a JSON object with a `type`:
 //!
@@ -40,7 +45,7 @@
 //! | `hello` | `catalog` (buttons, shortcuts, field size), `strategy`, `max_message_bytes`, `server_time_ms` (the panel's clock, ms since the Unix epoch), `stale_after_ms` | on connect |
 //! | `reply` | `id` (the request's), `ok`, `entry` (the history entry: `label`, `status`, `reason`, `target`) | after each request |
 //! | `history` | `entries` (oldest first; `status` is `accepted`, `refused`, `replaced` or `pending`) | on connect and on every change |
-//! | `state` | `topic`, `data` (the bus message as JSON) | the latest of `nao/world_model`, `nao/local_model` (per robot), `nao/game_state`, `vision/ball`, `executive/transitions` (per machine), `vision/rgbd` (image size, stamp, sequence number, and `track`: the `vision/ball` result for that very frame, or null), each at most at its rate of [`component::STATE_RATES`] |
+//! | `state` | `topic`, `data` (the bus message as JSON) | the latest of `nao/world_model`, `nao/local_model` (per robot), `nao/game_state`, `vision/ball`, `executive/transitions` (per machine), `speech/listening`, `vision/rgbd` (image size, stamp, sequence number, and `track`: the `vision/ball` result for that very frame, or null), each at most at its rate of [`component::STATE_RATES`] |
 //! | `coach_status` | the coach machine's state, pending command and why it waits, last command, last-seen ages of ball and obstacles, link: see [`coach_status`] | the latest `coach/status`, at most 4 a second |
 //! | `event` | `topic`, `data` | every message of `nao/link`, `speech/say`, `speech/speaking`, `speech/utterance`, `game/command`, `executive/log`, `vision/ball_events`; the last [`server::EVENT_REPLAY`] are replayed on connect |
 //!

@@ -103,7 +103,18 @@ function onState(topic, d) {
     case 'vision/rgbd': state.rgbdNext = d; break; // describes the image that follows
     case 'vision/ball': state.ball = d; renderBall(); break;
     case 'executive/transitions': renderExec(d); break;
+    case 'speech/listening': renderHearing(d); break;
   }
+}
+// Where the recognizer's beam listens and where it hears sound from (degrees, the array's frame:
+// 0 straight ahead, positive to the left).
+function renderHearing(d) {
+  const deg = (r) => `${Math.round(r * 180 / Math.PI)}°`;
+  const side = (r) => Math.abs(r) < 0.05 ? 'ahead' : r > 0 ? 'left' : 'right';
+  let t = `${d.header.frame_id}: listening at ${deg(d.beam_azimuth_rad)} (${side(d.beam_azimuth_rad)})`;
+  if (d.located) t += `; a sound from ${deg(d.talker_azimuth_rad)}${d.elsewhere ? ', someone else' : ', her'}`;
+  $('hearing').textContent = t;
+  $('hearing').dataset.elsewhere = String(d.located && d.elsewhere);
 }
 function onEvent(topic, d) {
   switch (topic) {

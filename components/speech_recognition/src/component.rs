@@ -6,81 +6,20 @@
 use crate::beam::LiveBeam;
 use crate::confidence::ConfidenceConfig;
 use crate::heard;
+use crate::intake::{DecoderQueue, ListeningPacer, Whose, feed, hear_key, next_key};
 use crate::model::{AcousticModel, AdaptedOn, adapted_model_dir, adapted_on};
-use crate::talk::{KeyNews, TalkGate};
+use crate::talk::TalkGate;
 use crate::vad::{RATE_HZ, VadConfig};
 use crate::{Recognized, Recognizer, RecognizerConfig};
 use interfaces::clock::Moment;
 use interfaces::liveliness::Readers;
 use interfaces::msg::command::Game;
-use interfaces::msg::speech::{AudioChunk, TalkKey, Utterance, VoiceActivity, VoiceState};
+use interfaces::msg::speech::{Utterance, VoiceActivity, VoiceState};
 use interfaces::node::{Component, Interface};
 use interfaces::outbox::{Offered, Outbox};
 use interfaces::{Bus, Shutdown, topics};
 use std::path::PathBuf;
 use std::time::Duration;
-
-/// The audio that may wait for the decoder (s), whatever the chunks' length (20 ms from
-/// `audio_io`, 100 ms from the simulated person): the longest utterance and its decoding.
-pub const DECODER_BACKLOG_S: f64 = 10.0;
-
-/// A block for the decoder: its samples, when it arrived (the component's clock), when its
-/// first sample was heard (ns, the microphone's time), and whose sound it is.
-type Queued = (Vec<i16>, Moment, i64, Whose);
-
-/// Whose sound a block is, as far as the component knows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Whose {
-    /// Nothing says: the end-pointer judges.
-    Unknown,
-    /// Someone else's: from another direction ([`crate::beam`]), or heard while the talk key
-    /// was up ([`crate::talk`]).
-    Elsewhere,
-    /// The person's: heard while she held the talk key.
-    Hers,
-}
-
-/// The most chunks that may wait for the decoder, however short: 10 s of 2.5 ms chunks.
-const DECODER_BACKLOG_CHUNKS: usize = 4000;
-
-/// The queue of audio (one channel, 16 kHz) to the decoder thread, bounded by its duration: a
-/// chunk that would take it over [`DECODER_BACKLOG_S`] (or [`DECODER_BACKLOG_CHUNKS`]) is
-/// dropped and counted.
-struct DecoderQueue {
-    tx: std::sync::mpsc::SyncSender<Queued>,
-    /// Samples sent and not yet taken by the decoder.
-    queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
-}
-
-impl DecoderQueue {
-    fn new() -> (Self, DecoderInbox) {
-        let (tx, rx) = std::sync::mpsc::sync_channel(DECODER_BACKLOG_CHUNKS);
-        let queued = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
-        (
-            Self {
-                tx,
-                queued: queued.clone(),
-            },
-            DecoderInbox { rx, queued },
-        )
-    }
-}
-
-/// The decoder thread's end of a [`DecoderQueue`].
-struct DecoderInbox {
-    rx: std::sync::mpsc::Receiver<Queued>,
-    queued: std::sync::Arc<std::sync::atomic::AtomicUsize>,
-}
-
-impl DecoderInbox {
-    /// The next chunk, blocking; `None` once the queue's sender is gone.
-    fn recv(&self) -> Option<Queued> {
-        let chunk = self.rx.recv().ok()?;
-        self.queued
-            .fetch_sub(chunk.0.len(), std::sync::atomic::Ordering::Relaxed);
-        Some(chunk)
-    }
-}
 
 /// The recognizer's flags.
 #[derive(Debug, Clone, clap::Args)]
@@ -195,10 +134,13 @@ impl Component for SpeechRecognition {
     type Prepared = Prepared;
 
     fn interface(config: &Config) -> Interface {
-        let i = Interface::new(Self::NAME)
+        let mut i = Interface::new(Self::NAME)
             .subscribes(&topics::AUDIO_IN)
             .publishes(&topics::SPEECH_UTTERANCE)
             .publishes(&topics::SPEECH_ACTIVITY);
+        if config.array.is_some() && config.wav.is_none() {
+            i = i.publishes(&topics::SPEECH_LISTENING);
+        }
         if config.push_to_talk {
             i.subscribes(&topics::SPEECH_TALK)
         } else {
@@ -333,199 +275,6 @@ enum Decoded {
 const CATCH_UP_WAIT: Duration = Duration::from_secs(2);
 /// A gap between the mark and the first kept chunk longer than this is audio lost.
 const CHUNK_GAP_NS: i64 = 500_000_000;
-
-/// One chunk of `audio/in` to the decoder: one of the wrong format, or one the decoder has no
-/// room for, is dropped and counted. With push-to-talk (`talk`), what was heard while the key
-/// was up goes as sound from elsewhere.
-fn feed(
-    bus: &Bus,
-    audio_tx: &DecoderQueue,
-    beam: &mut Option<LiveBeam>,
-    talk: &mut Option<TalkGate>,
-    chunk: AudioChunk,
-) -> anyhow::Result<()> {
-    let channels = usize::from(chunk.channels);
-    let reason = if chunk.sample_rate_hz != RATE_HZ {
-        Some("wrong_rate")
-    } else if channels == 0 {
-        Some("no_channels")
-    } else if !chunk.pcm_s16le.len().is_multiple_of(2 * channels) {
-        Some("partial_frame")
-    } else if chunk.pcm_s16le.is_empty() {
-        Some("empty")
-    } else {
-        None
-    };
-    if let Some(reason) = reason {
-        let c = bus.counters().counter(&format!("audio_dropped/{reason}"));
-        let n = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        if n.is_power_of_two() || n == 0 {
-            tracing::warn!(
-                "dropped audio chunk ({reason}: {} Hz, {} channels, {} bytes; want {RATE_HZ} Hz s16le, whole frames), {} so far",
-                chunk.sample_rate_hz,
-                chunk.channels,
-                chunk.pcm_s16le.len(),
-                n + 1
-            );
-        }
-        return Ok(());
-    }
-    let Some(samples) = chunk.samples() else {
-        return Ok(());
-    };
-    let blocks = match beam {
-        Some(beam) if channels > 1 => {
-            let blocks = beam.push(&samples, channels, chunk.header.stamp_ns);
-            if blocks.iter().any(|h| !h.beamformed) {
-                let n = bus
-                    .counters()
-                    .counter("array_channel_mismatch")
-                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if n.is_power_of_two() || n == 0 {
-                    tracing::warn!(
-                        "an audio/in chunk of {channels} channels, the array {} has {} microphones: mixed into one channel, not beamformed ({} so far)",
-                        beam.name(),
-                        beam.channels(),
-                        n + 1
-                    );
-                }
-            }
-            let elsewhere = blocks.iter().filter(|h| h.elsewhere).count() as u64;
-            bus.counters()
-                .counter("array_blocks_elsewhere")
-                .fetch_add(elsewhere, std::sync::atomic::Ordering::Relaxed);
-            blocks
-                .into_iter()
-                .map(|h| (h.samples, h.stamp_ns, h.elsewhere))
-                .collect()
-        }
-        _ if channels > 1 => {
-            let n = bus
-                .counters()
-                .counter("audio_mixed_to_mono")
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            if n == 0 {
-                tracing::info!(
-                    "audio/in has {channels} channels: mixed into one (with --array <its geometry> the recognizer beamforms them)"
-                );
-            }
-            vec![(
-                audio::wav::mix_to_mono(&samples, channels),
-                chunk.header.stamp_ns,
-                false,
-            )]
-        }
-        _ => vec![(samples, chunk.header.stamp_ns, false)],
-    };
-    for (samples, stamp_ns, elsewhere) in blocks {
-        let key = talk.as_mut().map(|gate| {
-            let expired = gate.expired;
-            let half_ns = samples.len() as i64 * 500_000_000 / i64::from(RATE_HZ);
-            let held = gate.held_at(stamp_ns + half_ns);
-            if gate.expired > expired {
-                bus.counters().incr("talk_key_expired");
-                tracing::warn!(
-                    "the talk key was held and then not heard of for {:.1} s (the panel or its \
-                     page is gone?): taken as released",
-                    interfaces::msg::speech::TALK_KEY_EXPIRY_S
-                );
-            }
-            held
-        });
-        let whose = match (elsewhere, key) {
-            (true, _) => Whose::Elsewhere,
-            (false, None) => Whose::Unknown,
-            (false, Some(true)) => Whose::Hers,
-            (false, Some(false)) => {
-                bus.counters().incr("talk_blocks_outside_key");
-                Whose::Elsewhere
-            }
-        };
-        queue(bus, audio_tx, samples, stamp_ns, whose)?;
-    }
-    Ok(())
-}
-
-/// A talk key message into the push-to-talk gate, logged as the key goes down and up.
-fn hear_key(bus: &Bus, gate: &mut TalkGate, key: &TalkKey) {
-    match gate.key(key) {
-        KeyNews::Pressed => tracing::info!("talk key down ({})", key.source),
-        KeyNews::Released => tracing::info!("talk key up ({})", key.source),
-        KeyNews::Same => {}
-        KeyNews::Dropped => {
-            let n = bus
-                .counters()
-                .counter("talk_key_dropped")
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            if n.is_power_of_two() || n == 0 {
-                tracing::warn!(
-                    "dropped a talk key message from {:?} stamped {} ns: older than the last one, \
-                     or over a minute off the microphone's time (is that machine's clock \
-                     right?); {} so far",
-                    key.source,
-                    key.header.stamp_ns,
-                    n + 1
-                );
-            }
-        }
-    }
-}
-
-/// One block of one channel to the decoder, or dropped and counted when it is too far behind.
-fn queue(
-    bus: &Bus,
-    audio_tx: &DecoderQueue,
-    samples: Vec<i16>,
-    stamp_ns: i64,
-    whose: Whose,
-) -> anyhow::Result<()> {
-    let limit = (DECODER_BACKLOG_S * f64::from(RATE_HZ)) as usize;
-    let queued = audio_tx.queued.load(std::sync::atomic::Ordering::Relaxed);
-    let n = samples.len();
-    // Counted before it is sent: the decoder may take it (and count it out) at once.
-    let full = queued + n > limit || {
-        audio_tx
-            .queued
-            .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
-        match audio_tx
-            .tx
-            .try_send((samples, bus.clock().now(), stamp_ns, whose))
-        {
-            Ok(()) => false,
-            Err(std::sync::mpsc::TrySendError::Full(_)) => {
-                audio_tx
-                    .queued
-                    .fetch_sub(n, std::sync::atomic::Ordering::Relaxed);
-                true
-            }
-            Err(std::sync::mpsc::TrySendError::Disconnected(_)) => {
-                anyhow::bail!("the decoder thread stopped")
-            }
-        }
-    };
-    if full {
-        let c = bus.counters().counter("audio_dropped/decoder_behind");
-        let k = c.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        if k.is_power_of_two() || k == 0 {
-            tracing::warn!(
-                "the decoder is {:.1} s behind: dropped an audio chunk, {} so far",
-                queued as f64 / f64::from(RATE_HZ),
-                k + 1
-            );
-        }
-    }
-    Ok(())
-}
-
-/// The next talk key message; never, without push-to-talk.
-async fn next_key(
-    keys: Option<&interfaces::Subscriber<TalkKey>>,
-) -> Result<TalkKey, interfaces::BusError> {
-    match keys {
-        Some(keys) => keys.recv().await,
-        None => std::future::pending().await,
-    }
-}
 
 /// Says which acoustic model decodes, and what else is there and why it is not used.
 fn log_model(model: &AcousticModel) {
@@ -680,6 +429,12 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         None => None,
     };
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
+    let listening = if beam.is_some() {
+        Some(bus.publisher(&topics::SPEECH_LISTENING).await?)
+    } else {
+        None
+    };
+    let mut pacer = ListeningPacer::default();
     let (mut talk, talk_keys) = if prepared.push_to_talk {
         tracing::info!(
             "push-to-talk: only what is heard while the talk key is held ({}: the panel's \
@@ -731,6 +486,7 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
         }
         for chunk in missed {
             fed_until_ns = fed_until_ns.max(chunk.header.stamp_ns);
+            // Where it listened then is old news: not published.
             feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)?;
         }
     }
@@ -774,7 +530,13 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 if chunk.header.stamp_ns <= fed_until_ns {
                     continue;
                 }
-                feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)?;
+                for mut l in feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)? {
+                    if let Some(p) = listening.as_ref()
+                        && pacer.due(&l)
+                    {
+                        p.publish(&mut l).await?;
+                    }
+                }
             }
             key = next_key(talk_keys.as_ref()) => {
                 if let Some(gate) = talk.as_mut() {

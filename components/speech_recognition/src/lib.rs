@@ -31,6 +31,7 @@ pub mod denoise;
 pub mod garbage;
 pub mod grammar;
 pub mod heard;
+mod intake;
 pub mod model;
 pub mod recognizer;
 pub mod talk;

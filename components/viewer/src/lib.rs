@@ -37,6 +37,7 @@
 //! | `dr/changes` (+ a `dr/snapshot` call) | `dr/nodes/<node>` (world pose), `dr/edges`, `log/dr` | Transform3D, Points3D, LineStrips3D, TextLog |
 //! | `executive/transitions`, `executive/log` | `log/executive/<machine>`, `log/game` | TextLog |
 //! | `speech/*`, `game/command`, `game/answer` | `log/speech/*`, `log/dialog/*` | TextLog |
+//! | `speech/listening` | `hearing/<array>/{beam,her,someone_else}_azimuth_deg` | Scalars |
 //! | every topic | `stats/{rate_hz,latency_ms,thinned,dropped}/<topic>` | Scalars |
 
 pub mod blueprint;

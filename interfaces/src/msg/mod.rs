@@ -199,6 +199,7 @@ messages! {
     speech::SpeakingEvent => "robocog.speech.SpeakingEvent",
     speech::VoiceActivity => "robocog.speech.VoiceActivity",
     speech::TalkKey => "robocog.speech.TalkKey",
+    speech::ListeningDirection => "robocog.speech.ListeningDirection",
     tracking::SimBall => "robocog.sim.Ball",
     body::JointGoal => "robocog.body.JointGoal",
     body::JointGoalReply => "robocog.body.JointGoalReply",

@@ -100,6 +100,24 @@ pub struct VoiceActivity {
     pub stream_s: f64,
 }
 
+/// Where a recognizer that hears through a microphone array listens, and where the sound it hears
+/// comes from (`speech/listening`), in the array's own frame (`header.frame_id`: the array's
+/// name): azimuths in radians, 0 straight ahead, positive to the left. Sent for the beam's blocks
+/// (0.1 s) at most five times a second, and at once when the talker is placed elsewhere or back.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ListeningDirection {
+    pub header: Header,
+    /// Where the beam listens.
+    pub beam_azimuth_rad: f64,
+    /// Whether the localizer placed a sound in the last block (over the stream's floor).
+    pub located: bool,
+    /// Where it placed it (0 when `located` is false).
+    pub talker_azimuth_rad: f64,
+    /// Whether that sound was someone else's (away from the beam, and not just after hers):
+    /// the end-pointer opened and stretched no utterance on it.
+    pub elsewhere: bool,
+}
+
 /// The operator's talk key (`speech/talk`), for a recognizer in push-to-talk mode
 /// (`speech_recognition --push-to-talk`): only what the microphone hears while the key is held
 /// is speech to it; the rest is the room's. Sent when the key goes down, every

@@ -541,6 +541,14 @@ class JointStates:
 LinkChange = Literal["Established", "RobotNotResponding", "Restored"]
 
 @dataclasses.dataclass
+class ListeningDirection:
+    header: Header = dataclasses.field(default_factory=Header)
+    beam_azimuth_rad: float = 0.0
+    located: bool = False
+    talker_azimuth_rad: float = 0.0
+    elsewhere: bool = False
+
+@dataclasses.dataclass
 class NaoLinkEvent:
     header: Header = dataclasses.field(default_factory=Header)
     player_number: int = 0
@@ -907,6 +915,7 @@ TYPES: dict[str, type] = {
     "robocog.sim.Ball": SimBall,
     "robocog.sim.BallTruth": BallTruth,
     "robocog.sim.FieldTruth": FieldTruth,
+    "robocog.speech.ListeningDirection": ListeningDirection,
     "robocog.speech.SayRequest": SayRequest,
     "robocog.speech.SpeakingEvent": SpeakingEvent,
     "robocog.speech.TalkKey": TalkKey,
@@ -979,6 +988,7 @@ CLASSES: dict[str, type] = {
     "JointGoalReply": JointGoalReply,
     "sensor_msgs/msg/JointState": JointState,
     "JointStates": JointStates,
+    "ListeningDirection": ListeningDirection,
     "NaoLinkEvent": NaoLinkEvent,
     "NaoObstacle": NaoObstacle,
     "NaoLocalModel": NaoLocalModel,

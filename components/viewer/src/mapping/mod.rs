@@ -412,6 +412,23 @@ impl Mapper {
                     }
                 )),
             ));
+        } else if t == speech::ListeningDirection::TYPE_NAME {
+            // Where the recognizer's beam listens and where the sound it hears comes from, as
+            // curves over time (degrees of the array's frame, positive to the left): hers and
+            // someone else's apart.
+            let m: speech::ListeningDirection = decode(topic, payload)?;
+            let array = path_part(&m.header.frame_id);
+            out.push(Logged::new(
+                format!("hearing/{array}/beam_azimuth_deg"),
+                rerun::Scalars::single(m.beam_azimuth_rad.to_degrees()),
+            ));
+            if m.located {
+                let whose = if m.elsewhere { "someone_else" } else { "her" };
+                out.push(Logged::new(
+                    format!("hearing/{array}/{whose}_azimuth_deg"),
+                    rerun::Scalars::single(m.talker_azimuth_rad.to_degrees()),
+                ));
+            }
         } else if t == speech::SayRequest::TYPE_NAME {
             let m: speech::SayRequest = decode(topic, payload)?;
             out.push(Logged::new(

@@ -285,6 +285,52 @@ fn text_topics_become_text_logs_and_rates_and_latencies_are_measured() {
 }
 
 #[test]
+fn where_the_recognizer_listens_is_drawn_with_hers_and_someone_elses_apart() {
+    let mut mp = mapper();
+    let listening =
+        |talker_deg: f64, elsewhere: bool| interfaces::msg::speech::ListeningDirection {
+            header: interfaces::Header {
+                frame_id: "circular_4".into(),
+                ..Default::default()
+            },
+            beam_azimuth_rad: 0.0,
+            located: true,
+            talker_azimuth_rad: talker_deg.to_radians(),
+            elsewhere,
+        };
+    let items = map(
+        &mut mp,
+        "speech/listening",
+        &stamped(listening(60.0, true), S),
+        S,
+    );
+    assert!(find(&items, "hearing/circular_4/beam_azimuth_deg", "Scalars").is_some());
+    assert!(
+        find(
+            &items,
+            "hearing/circular_4/someone_else_azimuth_deg",
+            "Scalars"
+        )
+        .is_some()
+    );
+    assert!(find(&items, "hearing/circular_4/her_azimuth_deg", "Scalars").is_none());
+    let items = map(
+        &mut mp,
+        "speech/listening",
+        &stamped(listening(2.0, false), 2 * S),
+        2 * S,
+    );
+    assert!(find(&items, "hearing/circular_4/her_azimuth_deg", "Scalars").is_some());
+    // Nothing located: the beam alone.
+    let quiet = interfaces::msg::speech::ListeningDirection {
+        located: false,
+        ..listening(0.0, false)
+    };
+    let items = map(&mut mp, "speech/listening", &stamped(quiet, 3 * S), 3 * S);
+    assert_eq!(items.len(), 1, "{}", items.len());
+}
+
+#[test]
 fn the_dr_copy_follows_the_changes_and_asks_for_a_snapshot_after_a_gap() {
     use world_model::types::Stamp;
     let mut mp = mapper();
