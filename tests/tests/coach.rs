@@ -718,25 +718,7 @@ impl Attempt {
             bus,
         };
         let answers = attempt.bus.publisher(&topics::GAME_ANSWER).await.unwrap();
-        let says = attempt.says.0.clone();
-        tokio::spawn(async move {
-            let mut seen = 0;
-            loop {
-                let asks: Vec<_> = says.lock().unwrap().iter().skip(seen).cloned().collect();
-                seen += asks.len();
-                for a in asks {
-                    if a.text.to_lowercase().contains("did you say") {
-                        let _ = answers
-                            .publish(&mut Answer {
-                                yes: true,
-                                ..Default::default()
-                            })
-                            .await;
-                    }
-                }
-                tokio::time::sleep(Duration::from_millis(50)).await;
-            }
-        });
+        answer_yes_to_questions(&attempt.says, answers);
         attempt
     }
 
