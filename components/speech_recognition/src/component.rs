@@ -155,6 +155,11 @@ impl Component for SpeechRecognition {
             "--hold-s must be a number of seconds >= 0, got {}",
             config.hold_s
         );
+        anyhow::ensure!(
+            !(config.push_to_talk && config.wav.is_some()),
+            "--push-to-talk listens to audio/in while the talk key is held; a --wav file has no \
+             key: decode it without --push-to-talk"
+        );
         let array = match &config.array {
             Some(name) => {
                 let geometry = audio::array::ArrayGeometry::by_name_or_path(

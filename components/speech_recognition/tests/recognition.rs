@@ -533,3 +533,19 @@ fn commands_said_over_other_people_talking_are_heard() {
     assert!(heard * 10 >= all * 6, "{heard} of {all}");
     assert!(heard_quiet < heard, "{heard_quiet} against {heard}");
 }
+
+/// Push-to-talk has no key on a file: refused at start (a configuration error), saying why.
+#[test]
+fn push_to_talk_on_a_file_is_refused_at_start() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_speech_recognition"))
+        .args(["--wav", "/nonexistent.wav", "--push-to-talk", "true"])
+        .args(["--acoustic-model", "stock"])
+        .output()
+        .expect("speech_recognition runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(78), "{err}");
+    assert!(
+        err.contains("--push-to-talk") && err.contains("--wav"),
+        "{err}"
+    );
+}
