@@ -255,6 +255,25 @@ need_ros2_decoders() {
   export ROBOCOG_ROS2_PYTHON="$venv/bin/python"
 }
 
+# The room acoustics simulator the audio library's image-source rooms are checked against
+# (libs/audio/tests/room_reference.rs): pyroomacoustics from PyPI with the NumPy, SciPy and Cython
+# it needs at run time, pinned, in a Python venv outside the clone (pyroomacoustics ships
+# manylinux wheels: nothing is compiled). Exports ROBOCOG_PYROOM_PYTHON, that venv's python.
+# Idempotent.
+need_pyroom() {
+  local pins="pyroomacoustics==0.10.1 numpy==2.4.6 scipy==1.17.1 Cython==3.3.1"
+  local venv="${XDG_CACHE_HOME:-$HOME/.cache}/robocog/pyroom-$(echo "$pins" | cksum | cut -d' ' -f1)"
+  if [ ! -x "$venv/bin/python" ] || [ ! -f "$venv/.installed" ]; then
+    need_debs python3-venv
+    step "installing the room acoustics reference for the tests ($pins) into $venv"
+    python3 -m venv "$venv"
+    # shellcheck disable=SC2086
+    "$venv/bin/pip" install --quiet --disable-pip-version-check $pins
+    touch "$venv/.installed"
+  fi
+  export ROBOCOG_PYROOM_PYTHON="$venv/bin/python"
+}
+
 # The `rerun` command line of the rerun-sdk Python package, at the exact version of the `rerun`
 # crate the viewer component links (components/viewer/Cargo.toml), for the viewer's tests
 # (`rerun rrd verify`, `rerun rrd print`) and for watching a game (`rerun` is the viewer

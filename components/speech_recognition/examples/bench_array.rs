@@ -6,9 +6,19 @@
 //! Hearing through a microphone array, against one microphone of the same array (the peer): the
 //! player says every command of a game, 2 s apart, from where the robot knows she stands, while
 //! two other people talk all along from elsewhere in the room (at least 45 degrees away from
-//! her), each 10 dB under her; a 4-microphone circular array hears the room (plane waves, no
-//! reverberation yet). The chains, on the same recording, each a live stream in `audio_io`'s
-//! 20 ms chunks:
+//! her), each 10 dB under her as they speak; a 4-microphone circular array hears the room. The
+//! conditions:
+//!
+//! - `two_talkers_10db`: every talker a plane wave (far, in free field: no reverberation);
+//! - `clean`: the same rooms with nobody else talking, to show what the chain costs when there
+//!   is nothing to take out;
+//! - `two_talkers_10db_rt60_0.5` and `clean_rt60_0.5`: the same in a reverberant room (image
+//!   sources), 6 x 5 x 3 m with an RT60 of 0.5 s, the array at (2.5, 2.5, 1.2) m facing the
+//!   room's x axis, every talker 1.5 m from it at its height (about twice the room's critical
+//!   distance, so her reflections carry several times her direct sound's energy); all the
+//!   talkers are scaled by one gain that brings her speech to the array at its level as spoken.
+//!
+//! The chains, on the same recording, each a live stream in `audio_io`'s 20 ms chunks:
 //!
 //! - `beam`: the component's chain (`speech_recognition --array circular_4
 //!   --target-azimuth-deg <hers>`): delay-and-sum steered at her, the end-pointer told which
@@ -18,20 +28,21 @@
 //!
 //! Evaluation voices only: the player is one of flite's voices (another synthesizer family,
 //! built from recordings of real speakers, never used to adapt or tune anything); the others are
-//! espeak-ng's evaluation voices saying the evaluation set's background sentences. The same
-//! rooms with nobody else talking (`clean`) show what the chain costs when there is nothing to
-//! take out.
+//! espeak-ng's evaluation voices saying the evaluation set's background sentences.
 //!
 //! Figures per chain and condition: commands heard right (exactly that command, once, in its
 //! window), right and carried out at once (confidence at or above the dialog's high threshold,
 //! 0.7), commands wrongly carried out (a sure command nobody gave: a wrong one in a command's
 //! window, or one made of the others' talk, per command said), and the chain's real-time factor.
-//! The last line printed is a JSON summary. `--voices slt,rms` and `--games touch` narrow it;
-//! `--write-wav DIR` also writes each room's recording (`<game>_<voice>_<condition>.wav`), for
-//! `speech_recognition --wav FILE --array circular_4 --target-azimuth-deg <hers>`.
+//! The last line printed is a JSON summary (`<condition>_<chain>_right_pct` and so on, and
+//! `ratio_<condition>_beam_right_vs_one_mic`). `--voices slt,rms`, `--games touch` and
+//! `--conditions clean,clean_rt60_0.5` narrow it; `--write-wav DIR` also writes each room's
+//! recording (`<game>_<voice>_<condition>.wav`), for `speech_recognition --wav FILE --array
+//! circular_4 --target-azimuth-deg <hers>`.
 
 use audio::array::ArrayGeometry;
-use audio::array::sim::{RenderedRoom, TalkersRoom};
+use audio::array::room::ShoeboxRoom;
+use audio::array::sim::{RenderedRoom, Reverb, TalkersRoom};
 use audio::synth::Voice;
 use interfaces::msg::command::{Command, Game};
 use speech_recognition::beam::LiveBeam;
@@ -54,6 +65,47 @@ const OTHERS_DEG: [f64; 2] = [100.0, -135.0];
 const UNDER_DB: f64 = 10.0;
 const LEAD_S: f64 = 4.0;
 const GAP_S: f64 = 2.0;
+/// The reverberant room: its size (m), its reverberation time (s), where the array stands in
+/// it (m) and how far from it every talker stands (m).
+const ROOM_DIMS_M: [f64; 3] = [6.0, 5.0, 3.0];
+const ROOM_RT60_S: f64 = 0.5;
+const ROOM_ARRAY_M: [f64; 3] = [2.5, 2.5, 1.2];
+const ROOM_DISTANCE_M: f64 = 1.5;
+
+/// A kind of room the benchmark renders for every game and voice (see the module doc).
+#[derive(Clone, Copy)]
+struct Condition {
+    name: &'static str,
+    /// Whether the two others talk.
+    others: bool,
+    /// Whether in the reverberant room, rather than plane waves in free field.
+    reverberant: bool,
+}
+
+/// The plane-wave conditions first, under the names they have always had, so that earlier
+/// figures stay comparable.
+const CONDITIONS: [Condition; 4] = [
+    Condition {
+        name: "clean",
+        others: false,
+        reverberant: false,
+    },
+    Condition {
+        name: "two_talkers_10db",
+        others: true,
+        reverberant: false,
+    },
+    Condition {
+        name: "clean_rt60_0.5",
+        others: false,
+        reverberant: true,
+    },
+    Condition {
+        name: "two_talkers_10db_rt60_0.5",
+        others: true,
+        reverberant: true,
+    },
+];
 
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
 enum Chain {
@@ -180,6 +232,27 @@ fn main() {
         .iter()
         .map(|g| Game::from_name(g).unwrap_or_else(|| panic!("unknown game {g:?}")))
         .collect();
+    let conditions: Vec<Condition> = match list("--conditions") {
+        None => CONDITIONS.to_vec(),
+        Some(names) => {
+            for n in &names {
+                if !CONDITIONS.iter().any(|c| c.name == n) {
+                    let known: Vec<&str> = CONDITIONS.iter().map(|c| c.name).collect();
+                    panic!("unknown condition {n:?} (known: {})", known.join(", "));
+                }
+            }
+            CONDITIONS
+                .into_iter()
+                .filter(|c| names.iter().any(|n| n == c.name))
+                .collect()
+        }
+    };
+    let reverb = Reverb {
+        room: ShoeboxRoom::for_rt60(ROOM_DIMS_M, ROOM_RT60_S).unwrap(),
+        array_m: ROOM_ARRAY_M,
+        yaw_rad: 0.0,
+        distance_m: ROOM_DISTANCE_M,
+    };
     let write_wav = list("--write-wav").map(|v| v.join(","));
     if let Some(dir) = &write_wav {
         std::fs::create_dir_all(dir).unwrap();
@@ -195,15 +268,18 @@ fn main() {
         OTHERS_DEG[0],
         OTHERS_DEG[1]
     );
+    println!(
+        "reverberant room: {ROOM_DIMS_M:?} m, RT60 {ROOM_RT60_S} s, the array at {ROOM_ARRAY_M:?} m, the talkers {ROOM_DISTANCE_M} m from it"
+    );
     for game in &games {
         let said: Vec<Command> = Command::of_game(*game).collect();
         let phrases: Vec<&str> = said.iter().map(|c| c.phrase()).collect();
         for (vi, p) in players.iter().enumerate() {
             let player_deg = PLAYER_DEG[vi % PLAYER_DEG.len()];
-            for condition in ["clean", "two_talkers_10db"] {
-                let others = match condition {
-                    "clean" => vec![],
-                    _ => OTHERS_DEG
+            for c in &conditions {
+                let condition = c.name;
+                let others = if c.others {
+                    OTHERS_DEG
                         .iter()
                         .enumerate()
                         .map(|(k, deg)| {
@@ -216,7 +292,9 @@ fn main() {
                                 EVAL_BABBLE.iter().skip(3 * k).copied().collect();
                             (v, deg.to_radians(), sentences)
                         })
-                        .collect(),
+                        .collect()
+                } else {
+                    vec![]
                 };
                 let room = TalkersRoom {
                     player: Voice {
@@ -232,6 +310,7 @@ fn main() {
                     gap_s: GAP_S,
                     mic_noise: 30.0,
                     seed: 100 + vi as u64,
+                    reverb: c.reverberant.then_some(reverb),
                 }
                 .render(&geometry)
                 .unwrap();
@@ -254,7 +333,7 @@ fn main() {
                     t.audio_s += audio_s;
                     t.compute_s += compute_s;
                     eprintln!(
-                        "{:5} {p:6} at {player_deg:+4.0} deg {condition:16} {:12}: {}/{} right, {} at once, {} wrongly at once",
+                        "{:5} {p:6} at {player_deg:+4.0} deg {condition:25} {:12}: {}/{} right, {} at once, {} wrongly at once",
                         game.name(),
                         chain.name(),
                         t.right - before.right,
@@ -267,14 +346,14 @@ fn main() {
         }
     }
     println!(
-        "\n{:18} {:12} {:>8} {:>9} {:>10} {:>16} {:>6}",
+        "\n{:25} {:12} {:>8} {:>9} {:>10} {:>16} {:>6}",
         "condition", "chain", "said", "right %", "at once %", "wrong at once %", "RTF"
     );
     let mut json = serde_json::Map::new();
     for ((condition, chain), t) in &tallies {
         let rtf = t.compute_s / t.audio_s.max(1e-9);
         println!(
-            "{condition:18} {:12} {:>8} {:>9.1} {:>10.1} {:>16.2} {:>6.3}",
+            "{condition:25} {:12} {:>8} {:>9.1} {:>10.1} {:>16.2} {:>6.3}",
             chain.name(),
             t.said,
             pct(t.right, t.said),
@@ -291,7 +370,8 @@ fn main() {
         );
         json.insert(format!("{key}_rtf"), round(rtf));
     }
-    for condition in ["clean", "two_talkers_10db"] {
+    for c in &conditions {
+        let condition = c.name;
         let get = |chain| {
             tallies
                 .get(&(condition, chain))

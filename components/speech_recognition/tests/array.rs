@@ -53,6 +53,7 @@ fn room(
         gap_s: 2.0,
         mic_noise: 30.0,
         seed: 3,
+        reverb: None,
     }
     .render(geometry)
     .unwrap();

@@ -6,7 +6,9 @@
 //! - [`DelayAndSum`] and [`Mvdr`]: beamformers that turn the array's channels into one enhanced
 //!   channel, stream-wise, steered at a direction that may change as the stream goes on.
 //! - [`SrpPhat`]: where a sound comes from, over a block of 100-200 ms.
-//! - [`sim`]: the channels a plane wave gives, for tests and simulators.
+//! - [`sim`]: the channels a plane wave gives, and a room of talkers (plane waves, or a
+//!   reverberant room), for tests and simulators.
+//! - [`room`]: the channels talkers in a reverberant shoebox room give (image-source method).
 //!
 //! Frame: x forward, y left, z up (right-handed, ROS REP 103), metres. Azimuth 0 is straight ahead
 //! (+x), positive to the left (+y); elevation is positive upwards; angles in radians. All
@@ -16,6 +18,7 @@ mod beamformer;
 mod error;
 mod geometry;
 mod linalg;
+pub mod room;
 pub mod sim;
 mod srp;
 mod stft;
