@@ -215,7 +215,7 @@ try {
   // degrees to the left, someone else's).
   const hearing = await until('the hearing line', 5000, async () => {
     const t = await page.textContent('#hearing');
-    return t.includes('listening at 0° (ahead)') && t.includes('a sound from 60°, someone else') && t;
+    return t.includes('listening to player at 0° (ahead)') && t.includes('a sound from 60°, someone else') && t;
   });
   report('touch', { camera, ball, hearing });
   await page.click('button[data-name="TouchBall"]');

@@ -82,6 +82,7 @@ fn player_alone(phrases: &[&str], geometry: &ArrayGeometry, seed: u64) -> Render
         gap_s: 1.5,
         mic_noise: 30.0,
         seed,
+        reverb: None,
     }
     .render(geometry)
     .unwrap()
@@ -136,6 +137,7 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
         gap_s: 0.5,
         mic_noise: 30.0,
         seed: 6,
+        reverb: None,
     }
     .render(&geometry)
     .unwrap();
@@ -192,6 +194,174 @@ async fn an_array_is_captured_channel_by_channel_and_beamformed_into_her_command
         player
             .iter()
             .any(|l| l.located && !l.elsewhere && l.talker_azimuth_rad.to_degrees().abs() < 15.0),
+        "{player:?}"
+    );
+}
+
+/// `v` turned by the unit quaternion `q` (x, y, z, w).
+fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let u = [q[0], q[1], q[2]];
+    let t = cross(u, v).map(|x| 2.0 * x);
+    let c = cross(u, t);
+    [0, 1, 2].map(|i| v[i] + q[3] * t[i] + c[i])
+}
+
+/// Listening where the robot looks: with `--array-frame head_rgbd_link`, the recognizer asks
+/// the deep representation where the player is in the array's frame and steers the beam there.
+/// The player is moved, in the deep representation, to 45 degrees to the left of the array (the
+/// first node asked for, `visitor`, is unknown: the next, `player`, is taken): the beam turns
+/// to her (`speech/listening` says so), someone straight ahead, where a fixed beam would listen,
+/// is someone else to it, and the commands she says from where the deep representation places
+/// her are heard, exactly.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_beam_listens_to_the_player_where_the_deep_representation_places_her() {
+    use interfaces::msg::dr::{PoseUpdate, Transform, TransformRequest, UpdateRequest};
+    let server = SoundServer::start_array("array-dr", 4);
+    let text = manifest(&server, "array.monitor", "circular_4", "").replace(
+        r#""--acoustic-model", "adapted"]"#,
+        &format!(
+            r#""--acoustic-model", "adapted",
+        "--array-frame", "head_rgbd_link", "--listen-to", "visitor,player"]
+depends_on = ["deep_representation"]
+
+[[component]]
+name = "deep_representation"
+binary = "{}"
+args = ["--scene", "touch"]"#,
+            bin("deep_representation").display()
+        ),
+    );
+    let (launch, bus) = graph("array-dr", &text).await;
+    let heard = Log::follow(&bus, &topics::SPEECH_UTTERANCE).await;
+    let listening = Log::follow(&bus, &topics::SPEECH_LISTENING).await;
+    let geometry = ArrayGeometry::builtin("circular_4").unwrap();
+    let call = Duration::from_secs(10);
+
+    // The player, 1.2 m away at 45 degrees to the left of the array, in the world.
+    let ask = |target: &str, source: &str| TransformRequest {
+        header: Default::default(),
+        target: target.into(),
+        source: source.into(),
+        stamp_ns: 0,
+    };
+    let head = bus
+        .call(&topics::DR_TRANSFORM, &ask("world", "head_rgbd_link"), call)
+        .await
+        .unwrap()
+        .transform;
+    let (c, s) = (45f64.to_radians().cos(), 45f64.to_radians().sin());
+    let offset = rotate(head.rotation_xyzw, [1.2 * c, 1.2 * s, 0.0]);
+    let at: [f64; 3] = [0, 1, 2].map(|i| head.translation_m[i] + offset[i]);
+    let update = UpdateRequest {
+        poses: vec![PoseUpdate {
+            node: "player".into(),
+            pose: Transform {
+                translation_m: at,
+                rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            },
+        }],
+        ..Default::default()
+    };
+    bus.call(&topics::DR_UPDATE, &update, call).await.unwrap();
+    let seen = bus
+        .call(
+            &topics::DR_TRANSFORM,
+            &ask("head_rgbd_link", "player"),
+            call,
+        )
+        .await
+        .unwrap()
+        .transform
+        .translation_m;
+    assert!(
+        (seen[1].atan2(seen[0]).to_degrees() - 45.0).abs() < 0.1,
+        "{seen:?}"
+    );
+
+    // The beam turns to her.
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let turned = |l: &ListeningDirection| {
+        l.listening_to == "player" && (l.beam_azimuth_rad.to_degrees() - 45.0).abs() < 3.0
+    };
+    while !listening.all().iter().any(turned) && std::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let log = launch.lines.all().join("\n");
+    assert!(
+        listening.all().iter().any(turned),
+        "the beam did not turn to the player: {:?}\n{log}",
+        listening.all().last()
+    );
+    // The log says which node it listens to (once, not at every move).
+    assert!(
+        log.contains("listening to player (the deep representation), at ")
+            && !log.contains("listening to visitor ("),
+        "{log}"
+    );
+
+    // Someone straight ahead speaks: someone else, to a beam on the player.
+    let before = listening.len();
+    let ahead = TalkersRoom {
+        player: voice("en-us+f3", 160, 50),
+        phrases: &["the garden looks lovely after the rain in spring"],
+        player_azimuth_rad: 0.0,
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 0.5,
+        gap_s: 0.5,
+        mic_noise: 30.0,
+        seed: 16,
+        reverb: None,
+    }
+    .render(&geometry)
+    .unwrap();
+    play(&server, &ahead.pcm.samples);
+    let aside: Vec<ListeningDirection> = listening.all()[before..].to_vec();
+    assert!(
+        aside.iter().any(|l| l.located
+            && l.elsewhere
+            && l.listening_to == "player"
+            && l.talker_azimuth_rad.to_degrees().abs() < 15.0),
+        "no block of the talker ahead placed elsewhere: {aside:?}"
+    );
+
+    // The player, where the deep representation places her, says the game's commands.
+    let before_player = listening.len();
+    let said: Vec<Command> = Command::of_game(Game::Touch).take(3).collect();
+    let phrases: Vec<&str> = said.iter().map(|c| c.phrase()).collect();
+    let room = TalkersRoom {
+        player: voice("en-gb", 150, 45),
+        phrases: &phrases,
+        player_azimuth_rad: 45f64.to_radians(),
+        others: vec![],
+        under_db: 0.0,
+        lead_s: 1.0,
+        gap_s: 1.5,
+        mic_noise: 30.0,
+        seed: 17,
+        reverb: None,
+    }
+    .render(&geometry)
+    .unwrap();
+    play(&server, &room.pcm.samples);
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while commands(&heard.all()).last() != said.last() && std::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    let log = launch.lines.all().join("\n");
+    assert_eq!(commands(&heard.all()), said, "{log}");
+    let player: Vec<ListeningDirection> = listening.all()[before_player..].to_vec();
+    assert!(
+        player.iter().any(|l| l.located
+            && !l.elsewhere
+            && (l.talker_azimuth_rad.to_degrees() - 45.0).abs() < 15.0),
         "{player:?}"
     );
 }

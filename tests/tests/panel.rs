@@ -203,8 +203,9 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
         }
     });
 
-    // A recognizer hearing through an array, as it says where it listens: a talker at 60
-    // degrees to the left, someone else's (the touch view shows it).
+    // A recognizer hearing through an array, as it says where it listens (at the player the
+    // deep representation holds): a talker at 60 degrees to the left, someone else's (the touch
+    // view shows it).
     let listening = bus.publisher(&topics::SPEECH_LISTENING).await.unwrap();
     tokio::spawn(async move {
         loop {
@@ -214,6 +215,7 @@ async fn a_click_on_the_page_moves_the_simulated_robot_and_bad_input_is_refused(
                     ..Default::default()
                 },
                 beam_azimuth_rad: 0.0,
+                listening_to: "player".into(),
                 located: true,
                 talker_azimuth_rad: 60f64.to_radians(),
                 elsewhere: true,

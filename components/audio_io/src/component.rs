@@ -110,7 +110,8 @@ pub struct Config {
     /// the source's order, for the recognizer to beamform. A geometry in `models/arrays/`
     /// (kinect_v1, circular_4, circular_6, laptop_2; found under ./models, else built in) or a
     /// geometry file of its own. A source with another channel count than the array's is
-    /// captured in mono, said and counted (`array_channel_mismatch`); the game goes on.
+    /// captured in mono, said and counted (`array_channel_mismatch`); the game goes on. Empty:
+    /// one microphone, as without the flag (a manifest's default).
     #[arg(long, value_name = "NAME|FILE")]
     pub array: Option<String>,
 }
@@ -224,8 +225,9 @@ pub fn prepare(config: Config) -> anyhow::Result<Prepared> {
             listing: devices.listing(pulse::Kind::Sink),
         }));
     }
-    let array = match &config.array {
-        Some(name) => Some(array_layout(&config, name, &devices)?),
+    let array = match config.array.as_deref().map(str::trim) {
+        Some(name) if !name.is_empty() => Some(array_layout(&config, name, &devices)?),
+        Some(_) => None,
         None => None,
     };
     let echo = Arc::new(Echo::new(&config, array));

@@ -111,7 +111,9 @@ function onState(topic, d) {
 function renderHearing(d) {
   const deg = (r) => `${Math.round(r * 180 / Math.PI)}°`;
   const side = (r) => Math.abs(r) < 0.05 ? 'ahead' : r > 0 ? 'left' : 'right';
-  let t = `${d.header.frame_id}: listening at ${deg(d.beam_azimuth_rad)} (${side(d.beam_azimuth_rad)})`;
+  // What the beam is steered at: a node of the deep representation, or the loudest talker.
+  const to = d.listening_to && d.listening_to !== 'fixed' ? ` to ${d.listening_to}` : '';
+  let t = `${d.header.frame_id}: listening${to} at ${deg(d.beam_azimuth_rad)} (${side(d.beam_azimuth_rad)})`;
   if (d.located) t += `; a sound from ${deg(d.talker_azimuth_rad)}${d.elsewhere ? ', someone else' : ', her'}`;
   $('hearing').textContent = t;
   $('hearing').dataset.elsewhere = String(d.located && d.elsewhere);

@@ -3,9 +3,11 @@
 //! the end-pointer and the decoder take, with the same delay-and-sum beamformer as `--wav
 //! --array` ([`crate::array_wav`]).
 //!
-//! The beam listens at a fixed azimuth of the array's own frame (`--target-azimuth-deg`, 0 by
-//! default: straight ahead). On a robot whose array is on its head (Loki's Kinect), straight ahead
-//! is where the robot looks, and the robot looks at the person it plays with while she speaks.
+//! Where the beam listens is its [`Aim`]: a fixed azimuth of the array's own frame
+//! (`--target-azimuth-deg`, 0 by default: straight ahead, where a robot with the array on its head
+//! looks); the person the deep representation holds, the azimuth given from outside block by
+//! block ([`crate::steer`], `--array-frame`); or, when nobody is known, the loudest talker: the
+//! sector the localizer placed most of the last [`LOUDEST_WINDOW_S`]'s sounds in ([`Loudest`]).
 //!
 //! The beam works on blocks of [`BLOCK_S`] (so the recognizer hears the array that much later).
 //! The localizer (SRP-PHAT) places each block's dominant sound; a block whose sound comes from
@@ -33,6 +35,105 @@ pub const HER_DIRECTION_DEG: f64 = 30.0;
 /// command cut there is lost; a pause between words is shorter than this.
 pub const HER_HOLD_S: f64 = 0.3;
 
+/// How far the aim must move before the beam is steered again (degrees): well inside the main
+/// lobe, so that a person's small moves do not re-steer it block after block.
+pub const STEER_STEP_DEG: f64 = 2.0;
+
+/// How much of the past the loudest talker is found in (s).
+pub const LOUDEST_WINDOW_S: f64 = 1.0;
+
+/// The sectors the loudest talker is found in (degrees): the localizer's spread on one talker.
+pub const LOUDEST_SECTOR_DEG: f64 = 20.0;
+
+/// How many of the window's blocks must be placed in one sector before the beam turns there: a
+/// syllable or two, not a door's bang.
+pub const LOUDEST_MIN_BLOCKS: usize = 3;
+
+/// What the beam listens to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Aim {
+    /// A set azimuth (rad, the array's frame).
+    Fixed(f64),
+    /// A node of the deep representation, at this azimuth now (rad, the array's frame).
+    Node { name: String, azimuth_rad: f64 },
+    /// Nobody is known: the loudest talker ([`Loudest`]).
+    Loudest,
+}
+
+impl Aim {
+    /// What `speech/listening` says it is steered at: the node's name, `loudest` or `fixed`.
+    pub fn label(&self) -> &str {
+        match self {
+            Aim::Fixed(_) => "fixed",
+            Aim::Node { name, .. } => name,
+            Aim::Loudest => "loudest",
+        }
+    }
+}
+
+/// The loudest talker, from where the localizer placed the last [`LOUDEST_WINDOW_S`] of blocks:
+/// the [`LOUDEST_SECTOR_DEG`] sector that holds most of them (at least [`LOUDEST_MIN_BLOCKS`]),
+/// at their circular mean. The localizer places each block's dominant sound, so the talker who
+/// holds the floor holds the most blocks.
+#[derive(Debug, Clone, Default)]
+pub struct Loudest {
+    /// The window's blocks: where each one's sound was placed (rad), if anywhere.
+    recent: std::collections::VecDeque<Option<f64>>,
+    window: usize,
+}
+
+impl Loudest {
+    /// A window of `window` blocks.
+    pub fn new(window: usize) -> Self {
+        Self {
+            recent: std::collections::VecDeque::with_capacity(window + 1),
+            window: window.max(1),
+        }
+    }
+
+    /// One block's placement.
+    pub fn push(&mut self, located_rad: Option<f64>) {
+        self.recent.push_back(located_rad);
+        while self.recent.len() > self.window {
+            self.recent.pop_front();
+        }
+    }
+
+    /// Where the loudest talker is (rad), if one holds enough of the window.
+    pub fn azimuth_rad(&self) -> Option<f64> {
+        let placed: Vec<f64> = self.recent.iter().flatten().copied().collect();
+        let half = (LOUDEST_SECTOR_DEG / 2.0).to_radians();
+        // Each placement as a sector's centre: the one with the most placements within half a
+        // sector of it (ties: the most recent).
+        let (count, centre) = placed
+            .iter()
+            .map(|&c| {
+                (
+                    placed
+                        .iter()
+                        .filter(|&&a| angle_between(a, c) <= half)
+                        .count(),
+                    c,
+                )
+            })
+            .fold((0, 0.0), |best, x| if x.0 >= best.0 { x } else { best });
+        if count < LOUDEST_MIN_BLOCKS {
+            return None;
+        }
+        let (s, c) = placed
+            .iter()
+            .filter(|&&a| angle_between(a, centre) <= half)
+            .fold((0.0, 0.0), |(s, c), a| (s + a.sin(), c + a.cos()));
+        Some(s.atan2(c))
+    }
+}
+
+/// The angle between two azimuths (rad, 0 to π).
+fn angle_between(a: f64, b: f64) -> f64 {
+    ((a - b + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI)
+        .abs()
+}
+
 /// One block as the recognizer hears it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Heard {
@@ -57,7 +158,10 @@ pub struct LiveBeam {
     geometry: ArrayGeometry,
     beam: DelayAndSum,
     srp: SrpPhat,
+    /// Where it is steered (rad, the array's frame), and at what.
     azimuth_rad: f64,
+    aim: Aim,
+    loudest: Loudest,
     /// The input of the block being filled (interleaved), and its first sample's stamp.
     pending: Vec<i16>,
     pending_stamp_ns: i64,
@@ -71,12 +175,14 @@ impl std::fmt::Debug for LiveBeam {
         f.debug_struct("LiveBeam")
             .field("array", &self.geometry.name())
             .field("azimuth_deg", &self.azimuth_rad.to_degrees())
+            .field("aim", &self.aim)
             .finish()
     }
 }
 
 impl LiveBeam {
-    /// A beam of the array `geometry` listening at `azimuth_rad` (the array's frame).
+    /// A beam of the array `geometry` listening at `azimuth_rad` (the array's frame), aimed
+    /// there ([`Aim::Fixed`]) until [`LiveBeam::aim`] says otherwise.
     pub fn new(geometry: &ArrayGeometry, azimuth_rad: f64) -> Result<Self, ArrayError> {
         let mut beam = DelayAndSum::new(geometry);
         beam.steer(direction(azimuth_rad, 0.0))?;
@@ -85,6 +191,8 @@ impl LiveBeam {
             beam,
             srp: SrpPhat::new(geometry, SrpPhat::default_grid())?,
             azimuth_rad,
+            aim: Aim::Fixed(azimuth_rad),
+            loudest: Loudest::new((LOUDEST_WINDOW_S / BLOCK_S).round() as usize),
             pending: Vec::new(),
             pending_stamp_ns: 0,
             out: Vec::new(),
@@ -105,6 +213,37 @@ impl LiveBeam {
     /// Where it listens (rad, the array's frame).
     pub fn azimuth_rad(&self) -> f64 {
         self.azimuth_rad
+    }
+
+    /// What it listens to.
+    pub fn current_aim(&self) -> &Aim {
+        &self.aim
+    }
+
+    /// Aims it from the next block on: at a fixed azimuth or a node's (steered at once when
+    /// that is [`STEER_STEP_DEG`] or more from where it listens), or at the loudest talker
+    /// (steered block by block as the localizer finds them; until it does, it listens where it
+    /// did). An azimuth that is not a number is ignored.
+    pub fn aim(&mut self, aim: Aim) {
+        match &aim {
+            Aim::Fixed(a) | Aim::Node { azimuth_rad: a, .. } if a.is_finite() => self.steer(*a),
+            Aim::Fixed(_) | Aim::Node { .. } => return,
+            Aim::Loudest => {}
+        }
+        self.aim = aim;
+    }
+
+    /// Steers the beam at `azimuth_rad` if that is [`STEER_STEP_DEG`] or more from where it
+    /// listens.
+    fn steer(&mut self, azimuth_rad: f64) {
+        if angle_between(azimuth_rad, self.azimuth_rad) < STEER_STEP_DEG.to_radians() {
+            return;
+        }
+        let a = (azimuth_rad + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+            - std::f64::consts::PI;
+        if self.beam.steer(direction(a, 0.0)).is_ok() {
+            self.azimuth_rad = a;
+        }
     }
 
     /// How much later than the microphones the beam's output is (ns), besides the wait for a
@@ -170,6 +309,12 @@ impl LiveBeam {
             .ok()
             .flatten()
             .map(|l| l.azimuth_rad);
+        self.loudest.push(located);
+        if self.aim == Aim::Loudest
+            && let Some(a) = self.loudest.azimuth_rad()
+        {
+            self.steer(a);
+        }
         let beamformed = self
             .beam
             .process(Multichannel::Interleaved(block), &mut self.out)
@@ -182,12 +327,8 @@ impl LiveBeam {
         } else {
             audio::wav::mix_to_mono(block, self.channels())
         };
-        let hers = located.map(|az| {
-            let off = (az - self.azimuth_rad + std::f64::consts::PI)
-                .rem_euclid(2.0 * std::f64::consts::PI)
-                - std::f64::consts::PI;
-            off.abs() <= HER_DIRECTION_DEG.to_radians()
-        });
+        let hers =
+            located.map(|az| angle_between(az, self.azimuth_rad) <= HER_DIRECTION_DEG.to_radians());
         let hold = (HER_HOLD_S / BLOCK_S).round() as usize;
         let elsewhere = hers == Some(false) && self.since_her.saturating_add(1) > hold;
         self.since_her = match hers {
@@ -337,5 +478,84 @@ mod tests {
             .map(|h| h.stamp_ns + beam.latency_ns())
             .collect();
         assert_eq!(stamps, [1_000_000_000, 1_100_000_000]);
+    }
+
+    /// The talker who holds the floor is the loudest: the sector with most placements of the
+    /// window, at their mean; a few scattered placements are nobody.
+    #[test]
+    fn the_loudest_talker_is_where_most_of_the_last_second_was_placed() {
+        let mut l = Loudest::new(10);
+        assert_eq!(l.azimuth_rad(), None);
+        for deg in [60.0, 62.0] {
+            l.push(Some(f64::to_radians(deg)));
+        }
+        l.push(None);
+        assert_eq!(l.azimuth_rad(), None, "two blocks are not a talker");
+        for deg in [-28.0, -32.0, -30.0, -26.0, -34.0] {
+            l.push(Some(f64::to_radians(deg)));
+        }
+        let at = l.azimuth_rad().unwrap().to_degrees();
+        assert!((at + 30.0).abs() < 1.0, "{at}");
+        // Across the back of the array (±180 degrees) the mean does not fall to 0.
+        let mut l = Loudest::new(10);
+        for deg in [178.0, -178.0, 179.0, -179.0] {
+            l.push(Some(f64::to_radians(deg)));
+        }
+        let at = l.azimuth_rad().unwrap().to_degrees();
+        assert!(at.abs() > 175.0, "{at}");
+        // The window forgets: ten blocks later, the placements are gone.
+        for _ in 0..10 {
+            l.push(None);
+        }
+        assert_eq!(l.azimuth_rad(), None);
+    }
+
+    /// Aimed at the loudest talker, the beam turns to bursts of speech-like noise from 70 degrees
+    /// and takes them as hers; aimed at a node, it turns at once; an azimuth that is not a number
+    /// changes nothing.
+    #[test]
+    fn a_beam_aimed_at_the_loudest_talker_turns_to_her_and_one_aimed_at_a_node_turns_at_once() {
+        let g = ArrayGeometry::builtin("circular_4").unwrap();
+        let mut rng = audio::signal::NoiseRng::new(11);
+        let s: Vec<f64> = (0..32_000)
+            .map(|i| rng.gaussian() * if (i / 800) % 2 == 0 { 3000.0 } else { 300.0 })
+            .collect();
+        let mut pcm: Vec<i16> = (0..8000 * 4)
+            .map(|_| (rng.gaussian() * 30.0).round() as i16)
+            .collect();
+        pcm.extend(interleave(
+            &render_plane_wave(&g, &s, direction(f64::to_radians(70.0), 0.0), 16_000.0).unwrap(),
+        ));
+        let mut beam = LiveBeam::new(&g, 0.0).unwrap();
+        beam.aim(Aim::Loudest);
+        assert_eq!(beam.current_aim().label(), "loudest");
+        let heard: Vec<Heard> = pcm
+            .chunks(320 * 4)
+            .flat_map(|c| beam.push(c, 4, 0))
+            .collect();
+        let at = beam.azimuth_rad().to_degrees();
+        assert!((at - 70.0).abs() < 10.0, "turned to {at:.0} degrees");
+        // Her last second: all hers, once the beam turned to her.
+        assert!(
+            heard[heard.len() - 10..].iter().all(|h| !h.elsewhere),
+            "{:?}",
+            heard.iter().map(|h| h.elsewhere).collect::<Vec<_>>()
+        );
+
+        beam.aim(Aim::Node {
+            name: "player".into(),
+            azimuth_rad: f64::to_radians(-40.0),
+        });
+        assert_eq!(beam.current_aim().label(), "player");
+        assert!((beam.azimuth_rad().to_degrees() + 40.0).abs() < 1e-9);
+        beam.aim(Aim::Node {
+            name: "player".into(),
+            azimuth_rad: f64::NAN,
+        });
+        assert!((beam.azimuth_rad().to_degrees() + 40.0).abs() < 1e-9);
+        // A step under STEER_STEP_DEG does not re-steer it.
+        beam.aim(Aim::Fixed(f64::to_radians(-39.0)));
+        assert_eq!(beam.current_aim().label(), "fixed");
+        assert!((beam.azimuth_rad().to_degrees() + 40.0).abs() < 1e-9);
     }
 }

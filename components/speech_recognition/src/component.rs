@@ -38,7 +38,8 @@ pub struct Config {
     /// --array`, or the `--wav` file's), beamformed into one channel before decoding. A name in
     /// `models/arrays/` (kinect_v1, circular_4, circular_6, laptop_2; found under ./models, else
     /// built in) or a geometry file of its own. audio/in chunks with another channel count are
-    /// mixed into one, counted as `array_channel_mismatch`.
+    /// mixed into one, counted as `array_channel_mismatch`. Empty: one microphone, as without
+    /// the flag (a manifest's default).
     #[arg(long, value_name = "NAME|FILE")]
     pub array: Option<String>,
     /// With `--array`: where the talker is, in the array's frame (degrees; 0 straight ahead,
@@ -52,6 +53,21 @@ pub struct Config {
         value_name = "DEG"
     )]
     pub target_azimuth_deg: Option<f64>,
+    /// With `--array` on audio/in: the deep representation's frame the array's geometry is
+    /// given in (Loki's Kinect: `head_rgbd_link`). The beam then listens to the person the deep
+    /// representation holds (`--listen-to`), wherever the robot's head and the person move,
+    /// and to the loudest talker the localizer finds when it knows nobody.
+    #[arg(long, requires = "array", conflicts_with_all = ["target_azimuth_deg", "wav"], value_name = "FRAME")]
+    pub array_frame: Option<String>,
+    /// With `--array-frame`: the deep representation's nodes to listen to, the first it knows
+    /// first (comma-separated): the player, else the hand holding the ball.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "player,ball",
+        value_name = "NODES"
+    )]
+    pub listen_to: Vec<String>,
     /// End-pointer: dB above the noise floor that starts speech.
     #[arg(long, default_value_t = VadConfig::default().start_db)]
     pub start_db: f64,
@@ -107,6 +123,16 @@ pub struct Config {
     pub push_to_talk: bool,
 }
 
+impl Config {
+    /// The array `--array` names, if it names one (empty: one microphone).
+    fn array_name(&self) -> Option<&str> {
+        self.array
+            .as_deref()
+            .map(str::trim)
+            .filter(|a| !a.is_empty())
+    }
+}
+
 /// The `speech_recognition` component.
 #[derive(Debug)]
 pub struct SpeechRecognition;
@@ -117,6 +143,8 @@ pub struct Prepared {
     pub wav: Option<PathBuf>,
     /// The array the file's channels come from (`--array`), and the talker's azimuth (rad).
     pub array: Option<(audio::array::ArrayGeometry, Option<f64>)>,
+    /// Where the beam is steered from: the deep representation (`--array-frame`).
+    pub steer: Option<crate::steer::DrAim>,
     /// Who acts on `speech/utterance` (empty: nobody is waited for).
     pub readers: Vec<String>,
     /// How long an utterance is held for them at most.
@@ -138,8 +166,11 @@ impl Component for SpeechRecognition {
             .subscribes(&topics::AUDIO_IN)
             .publishes(&topics::SPEECH_UTTERANCE)
             .publishes(&topics::SPEECH_ACTIVITY);
-        if config.array.is_some() && config.wav.is_none() {
+        if config.array_name().is_some() && config.wav.is_none() {
             i = i.publishes(&topics::SPEECH_LISTENING);
+            if config.array_frame.is_some() {
+                i = i.calls(&topics::DR_TRANSFORM);
+            }
         }
         if config.push_to_talk {
             i.subscribes(&topics::SPEECH_TALK)
@@ -160,7 +191,7 @@ impl Component for SpeechRecognition {
             "--push-to-talk listens to audio/in while the talk key is held; a --wav file has no \
              key: decode it without --push-to-talk"
         );
-        let array = match &config.array {
+        let array = match config.array_name() {
             Some(name) => {
                 let geometry = audio::array::ArrayGeometry::by_name_or_path(
                     name,
@@ -182,10 +213,35 @@ impl Component for SpeechRecognition {
             }
             None => None,
         };
+        let steer = match (&config.array_frame, &array) {
+            (Some(frame), Some(_)) => {
+                let nodes: Vec<String> = config
+                    .listen_to
+                    .iter()
+                    .map(|n| n.trim().to_string())
+                    .filter(|n| !n.is_empty())
+                    .collect();
+                anyhow::ensure!(
+                    !frame.trim().is_empty(),
+                    "--array-frame must name a frame of the deep representation"
+                );
+                anyhow::ensure!(
+                    !nodes.is_empty(),
+                    "--listen-to must name at least one node of the deep representation \
+                     (player, ball, ...)"
+                );
+                Some(crate::steer::DrAim {
+                    frame: frame.trim().to_string(),
+                    nodes,
+                })
+            }
+            _ => None,
+        };
         Ok(Prepared {
             recognizer: recognizer(&config)?,
             wav: config.wav,
             array,
+            steer,
             readers: config
                 .utterance_readers
                 .iter()
@@ -423,15 +479,42 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
     let mut beam = match &prepared.array {
         Some((geometry, azimuth)) => {
             let beam = LiveBeam::new(geometry, azimuth.unwrap_or(0.0))?;
-            tracing::info!(
-                "audio/in from the {} microphones of the array {}: listening at {:.0} degrees of its frame",
-                beam.channels(),
-                beam.name(),
-                beam.azimuth_rad().to_degrees()
-            );
+            match &prepared.steer {
+                None => tracing::info!(
+                    "audio/in from the {} microphones of the array {}: listening at {:.0} degrees of its frame",
+                    beam.channels(),
+                    beam.name(),
+                    beam.azimuth_rad().to_degrees()
+                ),
+                Some(dr) => tracing::info!(
+                    "audio/in from the {} microphones of the array {} (frame {}): listening to \
+                     {} as the deep representation places them, else to the loudest talker",
+                    beam.channels(),
+                    beam.name(),
+                    dr.frame,
+                    dr.nodes.join(" or ")
+                ),
+            }
             Some(beam)
         }
         None => None,
+    };
+    // The deep representation steers the beam (`--array-frame`): asked at the newest audio's
+    // time, its answers applied from the next chunk on.
+    let newest_audio_ns = std::sync::Arc::new(std::sync::atomic::AtomicI64::new(0));
+    let aim = match (&prepared.steer, beam.is_some()) {
+        (Some(dr), true) => {
+            let (tx, rx) = tokio::sync::watch::channel(crate::beam::Aim::Loudest);
+            tokio::spawn(crate::steer::run(
+                bus.clone(),
+                dr.clone(),
+                newest_audio_ns.clone(),
+                tx,
+                shutdown.clone(),
+            ));
+            Some(rx)
+        }
+        _ => None,
     };
     let audio = bus.subscriber(&topics::AUDIO_IN).await?;
     let listening = if beam.is_some() {
@@ -534,6 +617,10 @@ pub async fn run(bus: Bus, prepared: Prepared, mut shutdown: Shutdown) -> anyhow
                 // Already fed from the microphone's kept audio, as this recognizer caught up.
                 if chunk.header.stamp_ns <= fed_until_ns {
                     continue;
+                }
+                if let (Some(b), Some(aim)) = (beam.as_mut(), aim.as_ref()) {
+                    newest_audio_ns.store(chunk.header.stamp_ns, std::sync::atomic::Ordering::Relaxed);
+                    b.aim(aim.borrow().clone());
                 }
                 for mut l in feed(&bus, &audio_tx, &mut beam, &mut talk, chunk)? {
                     if let Some(p) = listening.as_ref()

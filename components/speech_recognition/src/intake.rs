@@ -169,6 +169,7 @@ pub(crate) fn feed(
                             ..Default::default()
                         },
                         beam_azimuth_rad: beam.azimuth_rad(),
+                        listening_to: beam.current_aim().label().to_string(),
                         located: h.located_rad.is_some(),
                         talker_azimuth_rad: h.located_rad.unwrap_or(0.0),
                         elsewhere: h.elsewhere,

@@ -11,7 +11,8 @@
 //! out of grammar when the confidence is under the rejection threshold.
 //!
 //! The component ([`component`]) reads `audio/in` (or `--wav FILE`) and publishes
-//! `speech/utterance`. A microphone array's channels are beamformed first ([`beam`]); in a hall
+//! `speech/utterance`. A microphone array's channels are beamformed first ([`beam`]), steered at
+//! the person the deep representation holds ([`steer`]); in a hall
 //! where everyone talks, only what is heard while the operator holds a talk key is speech
 //! ([`talk`], `--push-to-talk`).
 //!
@@ -34,6 +35,7 @@ pub mod heard;
 mod intake;
 pub mod model;
 pub mod recognizer;
+pub mod steer;
 pub mod talk;
 pub mod vad;
 

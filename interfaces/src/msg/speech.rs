@@ -109,6 +109,10 @@ pub struct ListeningDirection {
     pub header: Header,
     /// Where the beam listens.
     pub beam_azimuth_rad: f64,
+    /// What it is steered at: a node of the deep representation (`player`, `ball`: the person
+    /// it holds, through the array's transform at the audio's time), `loudest` (nobody is
+    /// known: the loudest talker the localizer finds), or `fixed` (a set azimuth).
+    pub listening_to: String,
     /// Whether the localizer placed a sound in the last block (over the stream's floor).
     pub located: bool,
     /// Where it placed it (0 when `located` is false).

@@ -544,6 +544,7 @@ LinkChange = Literal["Established", "RobotNotResponding", "Restored"]
 class ListeningDirection:
     header: Header = dataclasses.field(default_factory=Header)
     beam_azimuth_rad: float = 0.0
+    listening_to: str = ""
     located: bool = False
     talker_azimuth_rad: float = 0.0
     elsewhere: bool = False

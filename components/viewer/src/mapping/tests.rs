@@ -294,6 +294,7 @@ fn where_the_recognizer_listens_is_drawn_with_hers_and_someone_elses_apart() {
                 ..Default::default()
             },
             beam_azimuth_rad: 0.0,
+            listening_to: "player".into(),
             located: true,
             talker_azimuth_rad: talker_deg.to_radians(),
             elsewhere,
