@@ -549,3 +549,57 @@ fn push_to_talk_on_a_file_is_refused_at_start() {
         "{err}"
     );
 }
+
+/// Steering flags that cannot work are refused before the recognizer joins the bus: an empty
+/// `--array-frame` or `--listen-to` (a configuration error, exit 78, naming the flag), and
+/// `--array-frame` beside `--target-azimuth-deg` or without `--array` (a usage error, exit 64).
+#[test]
+fn steering_flags_that_cannot_work_are_refused_at_start() {
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_speech_recognition"))
+            .args(args)
+            .args(["--acoustic-model", "stock"])
+            .output()
+            .expect("speech_recognition runs");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    for (args, said) in [
+        (
+            &["--array", "circular_4", "--array-frame", " "][..],
+            "--array-frame",
+        ),
+        (
+            &[
+                "--array",
+                "circular_4",
+                "--array-frame",
+                "head_rgbd_link",
+                "--listen-to",
+                ",",
+            ][..],
+            "--listen-to",
+        ),
+    ] {
+        let (code, err) = run(args);
+        assert_eq!(code, Some(78), "{args:?}: {err}");
+        assert!(err.contains(said), "{args:?}: {err}");
+    }
+    for args in [
+        &["--array-frame", "head_rgbd_link"][..],
+        &[
+            "--array",
+            "circular_4",
+            "--array-frame",
+            "head_rgbd_link",
+            "--target-azimuth-deg",
+            "30",
+        ][..],
+    ] {
+        let (code, err) = run(args);
+        assert_eq!(code, Some(64), "{args:?}: {err}");
+        assert!(err.contains("--array"), "{args:?}: {err}");
+    }
+}
